@@ -1,0 +1,25 @@
+// `ldem bench`: elastic dynamics of a free 3-D lattice, timed over the step loop only.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace ldem {
+
+struct BenchOptions {
+  unsigned nx = 64, ny = 64, nz = 64;
+  std::uint64_t steps = 200;
+  int threads = 0; // 0: all cores
+};
+
+struct BenchResult {
+  std::uint64_t bars = 0, nodes = 0, steps = 0;
+  int threads = 0;
+  double wall_s = 0.0, bar_updates_per_s = 0.0, bytes_per_module = 0.0, dt = 0.0, dt_stable = 0.0;
+  double energy_drift = 0.0; // relative change of total energy over the run
+};
+
+BenchResult run_bench(const BenchOptions& options);
+std::string bench_line(const BenchResult& r);
+
+} // namespace ldem

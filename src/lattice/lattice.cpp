@@ -1,0 +1,214 @@
+#include "lattice/lattice.hpp"
+
+#include "util/error.hpp"
+
+#include <cmath>
+#include <fmt/format.h>
+#include <limits>
+
+namespace ldem {
+
+std::string family_name(Family f) {
+  static const char* names[kFamilies] = {"edge_x",   "edge_y", "edge_z", "centre_x", "centre_y",
+                                         "centre_z", "diag_0", "diag_1", "diag_2",   "diag_3",
+                                         "diag_4",   "diag_5", "diag_6", "diag_7"};
+  return names[static_cast<int>(f)];
+}
+
+Lattice::Lattice(index_t nx, index_t ny, index_t nz, double L) : nx_(nx), ny_(ny), nz_(nz), L_(L) {
+  if (nx == 0 || ny == 0 || nz == 0)
+    throw InputError(fmt::format(
+        "lattice: modules must be at least 1 in each direction, got {} x {} x {}", nx, ny, nz));
+  if (!(L > 0.0) || !std::isfinite(L))
+    throw InputError(fmt::format("lattice: module edge L must be a positive length, got {}", L));
+  const std::uint64_t cx = nx + 1ull, cy = ny + 1ull, cz = nz + 1ull;
+  const std::uint64_t modules = std::uint64_t{nx} * ny * nz;
+  const std::uint64_t corners = cx * cy * cz;
+  const std::uint64_t bars = std::uint64_t{nx} * cy * cz + cx * ny * cz + cx * cy * nz +
+                             (nx - 1ull) * ny * nz + nx * (ny - 1ull) * nz + nx * ny * (nz - 1ull) +
+                             8 * modules;
+  constexpr std::uint64_t limit = std::numeric_limits<index_t>::max();
+  if (corners + modules >= limit || bars >= limit)
+    throw InputError(
+        fmt::format("lattice: {} x {} x {} modules need {} bars, more than the {} that "
+                    "32-bit indices allow on one process",
+                    nx, ny, nz, bars, limit));
+  num_corners_ = static_cast<index_t>(corners);
+  num_centres_ = static_cast<index_t>(modules);
+  num_bars_ = static_cast<index_t>(bars);
+
+  const index_t csy = nx + 1, csz = (nx + 1) * (ny + 1); // corner strides
+  const index_t msy = nx, msz = nx * ny;                 // centre strides
+  const NodeMap corner_at{0, csy, csz};
+  const NodeMap centre_at{num_corners_, msy, msz};
+  index_t offset = 0;
+  auto set = [&](Family f, index_t ni, index_t nj, index_t nk, NodeMap a, NodeMap b, Vec3 d0,
+                 BarKind kind) {
+    FamilyInfo& fi = families_[static_cast<int>(f)];
+    fi.ni = ni;
+    fi.nj = nj;
+    fi.nk = nk;
+    fi.offset = offset;
+    fi.a = a;
+    fi.b = b;
+    fi.d0 = d0;
+    fi.l0 = std::sqrt(d0.x * d0.x + d0.y * d0.y + d0.z * d0.z);
+    fi.kind = kind;
+    // A family with an empty block (centre bars of a one-module-thick direction) has no bars.
+    if (ni == 0 || nj == 0 || nk == 0)
+      fi.ni = fi.nj = fi.nk = 0;
+    offset += fi.count();
+  };
+  set(Family::EdgeX, nx, ny + 1, nz + 1, corner_at, {1, csy, csz}, {L, 0, 0}, BarKind::Normal);
+  set(Family::EdgeY, nx + 1, ny, nz + 1, corner_at, {csy, csy, csz}, {0, L, 0}, BarKind::Normal);
+  set(Family::EdgeZ, nx + 1, ny + 1, nz, corner_at, {csz, csy, csz}, {0, 0, L}, BarKind::Normal);
+  set(Family::CentreX, nx - 1, ny, nz, centre_at, {num_corners_ + 1, msy, msz}, {L, 0, 0},
+      BarKind::Normal);
+  set(Family::CentreY, nx, ny - 1, nz, centre_at, {num_corners_ + msy, msy, msz}, {0, L, 0},
+      BarKind::Normal);
+  set(Family::CentreZ, nx, ny, nz - 1, centre_at, {num_corners_ + msz, msy, msz}, {0, 0, L},
+      BarKind::Normal);
+  for (int c = 0; c < 8; ++c) {
+    const index_t a = c & 1, b = (c >> 1) & 1, cc = (c >> 2) & 1;
+    set(static_cast<Family>(static_cast<int>(Family::Diag0) + c), nx, ny, nz, centre_at,
+        {a + b * csy + cc * csz, csy, csz}, {(a - 0.5) * L, (b - 0.5) * L, (cc - 0.5) * L},
+        BarKind::Diagonal);
+  }
+}
+
+NodeAddress Lattice::node_address(index_t node) const {
+  if (node < num_corners_) {
+    const index_t cx = nx_ + 1, cy = ny_ + 1;
+    return {false, node % cx, (node / cx) % cy, node / (cx * cy)};
+  }
+  const index_t m = node - num_corners_;
+  return {true, m % nx_, (m / nx_) % ny_, m / (nx_ * ny_)};
+}
+
+Vec3 Lattice::position(index_t node) const {
+  const NodeAddress n = node_address(node);
+  const double s = n.centre ? 0.5 : 0.0;
+  return {(n.i + s) * L_, (n.j + s) * L_, (n.k + s) * L_};
+}
+
+int Lattice::modules_at_corner(index_t i, index_t j, index_t k) const {
+  return layers_sharing(i, nx_) * layers_sharing(j, ny_) * layers_sharing(k, nz_);
+}
+
+BarAddress Lattice::bar_address(index_t bar) const {
+  int f = kFamilies - 1;
+  while (families_[f].count() == 0 || bar < families_[f].offset)
+    --f;
+  const FamilyInfo& fi = families_[f];
+  const index_t r = bar - fi.offset;
+  return {static_cast<Family>(f), r % fi.ni, (r / fi.ni) % fi.nj, r / (fi.ni * fi.nj)};
+}
+
+std::array<index_t, 2> Lattice::bar_nodes(index_t bar) const {
+  const BarAddress a = bar_address(bar);
+  const FamilyInfo& fi = family(a.family);
+  return {fi.a.at(a.i, a.j, a.k), fi.b.at(a.i, a.j, a.k)};
+}
+
+Vec3 Lattice::bar_centre(index_t bar) const {
+  const auto [a, b] = bar_nodes(bar);
+  const Vec3 pa = position(a), pb = position(b);
+  return {0.5 * (pa.x + pb.x), 0.5 * (pa.y + pb.y), 0.5 * (pa.z + pb.z)};
+}
+
+double Lattice::area_factor(Family f, index_t i, index_t j, index_t k) const {
+  // An edge bar is shared by up to 4 modules; on the faces and edges of the box its area
+  // is scaled by (modules sharing it) / 4 so that every module holds the same stiffness.
+  switch (f) {
+  case Family::EdgeX:
+    return 0.25 * layers_sharing(j, ny_) * layers_sharing(k, nz_);
+  case Family::EdgeY:
+    return 0.25 * layers_sharing(i, nx_) * layers_sharing(k, nz_);
+  case Family::EdgeZ:
+    return 0.25 * layers_sharing(i, nx_) * layers_sharing(j, ny_);
+  default:
+    return 1.0;
+  }
+}
+
+double Lattice::area_factor(index_t bar) const {
+  const BarAddress a = bar_address(bar);
+  return area_factor(a.family, a.i, a.j, a.k);
+}
+
+std::string Lattice::describe() const {
+  return fmt::format("{} x {} x {} modules of L = {} m: {} nodes, {} bars", nx_, ny_, nz_, L_,
+                     num_nodes(), num_bars());
+}
+
+} // namespace ldem
+
+namespace ldem {
+
+std::vector<NodeRow> node_rows(const Lattice& lat) {
+  std::vector<NodeRow> rows;
+  rows.reserve((lat.ny() + 1ull) * (lat.nz() + 1ull) + std::uint64_t{lat.ny()} * lat.nz());
+  for (index_t k = 0; k <= lat.nz(); ++k)
+    for (index_t j = 0; j <= lat.ny(); ++j)
+      rows.push_back({false, j, k, lat.corner(0, j, k), lat.nx() + 1});
+  for (index_t k = 0; k < lat.nz(); ++k)
+    for (index_t j = 0; j < lat.ny(); ++j)
+      rows.push_back({true, j, k, lat.centre(0, j, k), lat.nx()});
+  return rows;
+}
+
+int row_links(const Lattice& lat, const NodeRow& row, RowLink out[kMaxRowLinks]) {
+  const index_t nx = lat.nx(), ny = lat.ny(), nz = lat.nz(), j = row.j, k = row.k;
+  int n = 0;
+  auto neg = [](Vec3 v) { return Vec3{-v.x, -v.y, -v.z}; };
+  // Row node i is the first node of bar (i + shift_i, jb, kb) of family f, or its second.
+  auto link = [&](Family f, index_t jb, index_t kb, index_t ilo, index_t ihi, std::int64_t shift_i,
+                  std::int64_t other_first, bool first_role) {
+    if (ilo >= ihi)
+      return;
+    const FamilyInfo& fi = lat.family(f);
+    out[n++] = {std::int64_t{lat.bar(f, 0, jb, kb)} + shift_i, other_first, ilo, ihi,
+                first_role ? fi.d0 : neg(fi.d0)};
+  };
+  if (!row.centre) {
+    const std::int64_t c0 = lat.corner(0, j, k);
+    link(Family::EdgeX, j, k, 0, nx, 0, c0 + 1, true);
+    link(Family::EdgeX, j, k, 1, nx + 1, -1, c0 - 1, false);
+    if (j < ny)
+      link(Family::EdgeY, j, k, 0, nx + 1, 0, lat.corner(0, j + 1, k), true);
+    if (j > 0)
+      link(Family::EdgeY, j - 1, k, 0, nx + 1, 0, lat.corner(0, j - 1, k), false);
+    if (k < nz)
+      link(Family::EdgeZ, j, k, 0, nx + 1, 0, lat.corner(0, j, k + 1), true);
+    if (k > 0)
+      link(Family::EdgeZ, j, k - 1, 0, nx + 1, 0, lat.corner(0, j, k - 1), false);
+    for (index_t c = 0; c < 8; ++c) {
+      const index_t a = c & 1, b = (c >> 1) & 1, cc = (c >> 2) & 1;
+      if (j < b || j - b >= ny || k < cc || k - cc >= nz)
+        continue;
+      // This corner is corner (a, b, cc) of module (i - a, j - b, k - cc).
+      link(static_cast<Family>(static_cast<int>(Family::Diag0) + c), j - b, k - cc, a, nx + a,
+           -std::int64_t{a}, std::int64_t{lat.centre(0, j - b, k - cc)} - a, false);
+    }
+  } else {
+    const std::int64_t m0 = lat.centre(0, j, k);
+    link(Family::CentreX, j, k, 0, nx - 1, 0, m0 + 1, true);
+    link(Family::CentreX, j, k, 1, nx, -1, m0 - 1, false);
+    if (j + 1 < ny)
+      link(Family::CentreY, j, k, 0, nx, 0, lat.centre(0, j + 1, k), true);
+    if (j > 0)
+      link(Family::CentreY, j - 1, k, 0, nx, 0, lat.centre(0, j - 1, k), false);
+    if (k + 1 < nz)
+      link(Family::CentreZ, j, k, 0, nx, 0, lat.centre(0, j, k + 1), true);
+    if (k > 0)
+      link(Family::CentreZ, j, k - 1, 0, nx, 0, lat.centre(0, j, k - 1), false);
+    for (index_t c = 0; c < 8; ++c) {
+      const index_t a = c & 1, b = (c >> 1) & 1, cc = (c >> 2) & 1;
+      link(static_cast<Family>(static_cast<int>(Family::Diag0) + c), j, k, 0, nx, 0,
+           std::int64_t{lat.corner(0, j + b, k + cc)} + a, true);
+    }
+  }
+  return n;
+}
+
+} // namespace ldem

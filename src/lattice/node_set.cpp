@@ -1,0 +1,92 @@
+#include "lattice/node_set.hpp"
+
+#include "util/error.hpp"
+
+#include <algorithm>
+#include <fmt/format.h>
+
+namespace ldem {
+
+Face parse_face(const std::string& text) {
+  static const char* names[] = {"x-", "x+", "y-", "y+", "z-", "z+"};
+  for (int f = 0; f < 6; ++f)
+    if (text == names[f])
+      return static_cast<Face>(f);
+  throw InputError(fmt::format("face: expected one of x-, x+, y-, y+, z-, z+, got \"{}\"", text));
+}
+
+std::string face_name(Face f) {
+  static const char* names[] = {"x-", "x+", "y-", "y+", "z-", "z+"};
+  return names[static_cast<int>(f)];
+}
+
+namespace {
+int axis_of(Face f) {
+  return static_cast<int>(f) / 2;
+}
+bool is_max(Face f) {
+  return static_cast<int>(f) % 2 == 1;
+}
+} // namespace
+
+std::vector<index_t> select_face(const Lattice& lat, Face face) {
+  const auto n = lat.modules();
+  const int ax = axis_of(face);
+  const index_t fixed = is_max(face) ? n[ax] : 0;
+  std::vector<index_t> out;
+  for (index_t k = 0; k <= n[2]; ++k)
+    for (index_t j = 0; j <= n[1]; ++j)
+      for (index_t i = 0; i <= n[0]; ++i) {
+        const index_t idx[3] = {i, j, k};
+        if (idx[ax] == fixed)
+          out.push_back(lat.corner(i, j, k));
+      }
+  return out;
+}
+
+std::vector<index_t> select_face_module_centres(const Lattice& lat, Face face) {
+  const auto n = lat.modules();
+  const int ax = axis_of(face);
+  const index_t fixed = is_max(face) ? n[ax] - 1 : 0;
+  std::vector<index_t> out;
+  for (index_t k = 0; k < n[2]; ++k)
+    for (index_t j = 0; j < n[1]; ++j)
+      for (index_t i = 0; i < n[0]; ++i) {
+        const index_t idx[3] = {i, j, k};
+        if (idx[ax] == fixed)
+          out.push_back(lat.centre(i, j, k));
+      }
+  return out;
+}
+
+std::vector<index_t> select_box(const Lattice& lat, Vec3 lo, Vec3 hi) {
+  const double tol = 1e-9 * lat.L();
+  std::vector<index_t> out;
+  for (index_t node = 0; node < lat.num_nodes(); ++node) {
+    const Vec3 p = lat.position(node);
+    bool inside = true;
+    for (int a = 0; a < 3; ++a)
+      inside = inside && p[a] >= lo[a] - tol && p[a] <= hi[a] + tol;
+    if (inside)
+      out.push_back(node);
+  }
+  return out;
+}
+
+std::vector<index_t> select_all(const Lattice& lat) {
+  std::vector<index_t> out(lat.num_nodes());
+  for (index_t n = 0; n < lat.num_nodes(); ++n)
+    out[n] = n;
+  return out;
+}
+
+NodeSet make_node_set(std::string name, std::vector<index_t> nodes, const std::string& how) {
+  if (nodes.empty())
+    throw InputError(
+        fmt::format("node set \"{}\" ({}) selects no node: expected at least one", name, how));
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  return {std::move(name), std::move(nodes)};
+}
+
+} // namespace ldem

@@ -1,0 +1,36 @@
+// Node sets chosen by geometry. A set is a sorted list of node numbers.
+#pragma once
+
+#include "lattice/lattice.hpp"
+
+#include <string>
+#include <vector>
+
+namespace ldem {
+
+enum class Face { XMin, XMax, YMin, YMax, ZMin, ZMax };
+
+// "x-", "x+", "y-", "y+", "z-", "z+"; throws InputError otherwise.
+Face parse_face(const std::string& text);
+std::string face_name(Face f);
+
+struct NodeSet {
+  std::string name;
+  std::vector<index_t> nodes;
+};
+
+// Corner nodes lying on a face of the box.
+std::vector<index_t> select_face(const Lattice& lattice, Face face);
+// Centre nodes of the layer of modules that touches a face ("centre nodes of the
+// modules on the top face"): loads applied there reach the body without the
+// boundary-edge scaling of the face's own bars.
+std::vector<index_t> select_face_module_centres(const Lattice& lattice, Face face);
+// Every node (corner or centre) with lo <= X <= hi component-wise, with a
+// tolerance of 1e-9 L so that nodes on the box's faces are caught.
+std::vector<index_t> select_box(const Lattice& lattice, Vec3 lo, Vec3 hi);
+std::vector<index_t> select_all(const Lattice& lattice);
+
+// Names a selection; an empty selection is refused with a message that names the set.
+NodeSet make_node_set(std::string name, std::vector<index_t> nodes, const std::string& how);
+
+} // namespace ldem

@@ -1,0 +1,146 @@
+#include "material/bar_table.hpp"
+
+#include "material/elastic_equivalence.hpp"
+#include "util/error.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+
+namespace ldem {
+
+namespace {
+
+void require(bool ok, const std::string& key, const std::string& expected, double got) {
+  if (!ok)
+    throw InputError(fmt::format("material.{}: expected {}, got {:g}", key, expected, got));
+}
+
+} // namespace
+
+double BarTable::area_ratio(BarKind kind) const {
+  if (spec_.single_ratio)
+    return kPaperSingleRatio;
+  const ElasticEquivalence eq = elastic_equivalence(spec_.nu);
+  return kind == BarKind::Normal ? kFractureAreaNormal / eq.area_normal
+                                 : kFractureAreaDiag / eq.area_diag;
+}
+
+BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields& fields)
+    : spec_(spec) {
+  require(spec.E > 0 && std::isfinite(spec.E), "E", "a positive modulus in Pa", spec.E);
+  require(spec.rho > 0 && std::isfinite(spec.rho), "rho", "a positive density in kg/m^3", spec.rho);
+  require(spec.Gf > 0 && std::isfinite(spec.Gf), "Gf", "a positive fracture energy in N/m",
+          spec.Gf);
+  require(spec.nu > 0.0 && spec.nu < 0.5, "nu", "a Poisson ratio in (0, 0.5)", spec.nu);
+  if (spec.e_p.has_value() == spec.R_f.has_value())
+    throw InputError("material: give exactly one of e_p (strain at peak force) and R_f "
+                     "(failure factor, eq. 7)");
+  if (spec.R_f)
+    require(*spec.R_f > 0, "R_f", "a positive failure factor", *spec.R_f);
+  const double e_p = spec.e_p ? *spec.e_p : failure_strain(*spec.R_f, spec.Gf, spec.E, spec.nu);
+  require(e_p > 0 && std::isfinite(e_p), spec.e_p ? "e_p" : "R_f", "a positive peak strain", e_p);
+  if (spec.e_r)
+    require(*spec.e_r > e_p, "e_r", fmt::format("a rupture strain above e_p = {:g}", e_p),
+            *spec.e_r);
+
+  const ElasticEquivalence eq = elastic_equivalence(spec.nu);
+  const double L = lat.L();
+  const double ratio_n = area_ratio(BarKind::Normal), ratio_d = area_ratio(BarKind::Diagonal);
+  const double l_n = L, l_d = std::sqrt(3.0) / 2.0 * L;
+  // With e_r given, the normal bars' K_r fixes an effective Gf from which the diagonals'
+  // K_r follows (eq. 12), so both kinds dissipate in the same proportion to their A^f.
+  const double Gf_eff =
+      spec.e_r ? (*spec.e_r / e_p) * spec.E * e_p * e_p * l_n / (2.0 * ratio_n) : spec.Gf;
+  for (int f = 0; f < kFamilies; ++f) {
+    const FamilyInfo& fi = lat.family(f);
+    FamilyMaterial& m = families_[f];
+    const bool normal = fi.kind == BarKind::Normal;
+    m.l0 = fi.l0;
+    m.area = (normal ? eq.area_normal : eq.area_diag) * L * L;
+    m.area_f = (normal ? kFractureAreaNormal : kFractureAreaDiag) * L * L;
+    m.k = spec.E * m.area / m.l0;
+    m.e_p = e_p;
+    m.e_r = ductility(Gf_eff, spec.E, e_p, normal ? ratio_n : ratio_d, m.l0) * e_p;
+  }
+
+  const std::uint64_t nb = lat.num_bars();
+  for (const auto* v : {&fields.E, &fields.Gf, &fields.e_p})
+    if (!v->empty() && v->size() != nb)
+      throw InputError(
+          fmt::format("material fields: expected one value per bar ({}), got {}", nb, v->size()));
+  const bool varies = !fields.E.empty() || !fields.Gf.empty() || !fields.e_p.empty();
+  DuctilitySummary& s = summary_;
+  s.kr_min_normal = s.kr_min_diag = s.worst_kr = s.L_cr_min = INFINITY;
+  s.kr_max_normal = s.kr_max_diag = 0.0;
+  auto account = [&](index_t bar, BarKind kind, double kr, double L_cr) {
+    double& lo = kind == BarKind::Normal ? s.kr_min_normal : s.kr_min_diag;
+    double& hi = kind == BarKind::Normal ? s.kr_max_normal : s.kr_max_diag;
+    lo = std::min(lo, kr);
+    hi = std::max(hi, kr);
+    s.L_cr_min = std::min(s.L_cr_min, L_cr);
+    if (kr < s.worst_kr) {
+      s.worst_kr = kr;
+      s.worst_bar = bar;
+    }
+  };
+  if (!varies) {
+    for (int f = 0; f < kFamilies; ++f) {
+      const FamilyInfo& fi = lat.family(f);
+      if (fi.count() == 0)
+        continue;
+      const FamilyMaterial& m = families_[f];
+      const double kr = m.e_r / m.e_p;
+      account(fi.offset, fi.kind, kr, critical_length(Gf_eff, spec.E, e_p, ratio_n));
+      if (kr < 1.0)
+        s.bars_below_one += fi.count();
+    }
+  } else {
+    k_.resize(nb);
+    e_p_.resize(nb);
+    e_r_.resize(nb);
+    const double er_scale_d =
+        ductility(1.0, 1.0, 1.0, ratio_d, l_d) / ductility(1.0, 1.0, 1.0, ratio_n, l_n);
+    for (index_t b = 0; b < nb; ++b) {
+      const BarAddress a = lat.bar_address(b);
+      const FamilyMaterial& m = families_[static_cast<int>(a.family)];
+      const BarKind kind = lat.family(a.family).kind;
+      const double E = fields.E.empty() ? spec.E : fields.E[b];
+      const double Gf = fields.Gf.empty() ? spec.Gf : fields.Gf[b];
+      const double ep = fields.e_p.empty() ? e_p : fields.e_p[b];
+      if (!(E > 0 && Gf > 0 && ep > 0))
+        throw InputError(fmt::format("material fields: bar {} has E = {:g}, Gf = {:g}, e_p = {:g}; "
+                                     "expected all positive",
+                                     b, E, Gf, ep));
+      const double ratio = kind == BarKind::Normal ? ratio_n : ratio_d;
+      k_[b] = E * m.area / m.l0 * lat.area_factor(a.family, a.i, a.j, a.k);
+      e_p_[b] = ep;
+      e_r_[b] = spec.e_r ? *spec.e_r * (kind == BarKind::Normal ? 1.0 : er_scale_d)
+                         : ductility(Gf, E, ep, ratio, m.l0) * ep;
+      const double kr = e_r_[b] / ep;
+      account(b, kind, kr, critical_length(Gf, E, ep, ratio_n));
+      if (kr < 1.0)
+        ++s.bars_below_one;
+    }
+  }
+  if (s.bars_below_one > 0 && !spec.allow_low_kr) {
+    const Vec3 c = lat.bar_centre(s.worst_bar);
+    throw InputError(fmt::format(
+        "material: K_r = e_r / e_p < 1 in {} of {} bars (smallest K_r = {:.4g}, bar {} centred at "
+        "({:g}, {:g}, {:g}) m): their softening branch is steeper than the elastic one and the "
+        "explicit solution is unstable. The critical length (eq. 13) is L_cr = {:.4g} m against "
+        "L = {:.4g} m: use modules with L <= L_cr, a larger Gf or a smaller e_p, or set "
+        "allow_low_kr = true to run anyway",
+        s.bars_below_one, nb, s.worst_kr, s.worst_bar, c.x, c.y, c.z, s.L_cr_min, L));
+  }
+}
+
+BilinearLaw BarTable::law(const Lattice& lat, index_t bar) const {
+  const BarAddress a = lat.bar_address(bar);
+  const FamilyMaterial& m = families_[static_cast<int>(a.family)];
+  if (per_bar())
+    return {k_[bar] * m.l0, m.l0, e_p_[bar], e_r_[bar]};
+  return {m.k * m.l0 * lat.area_factor(a.family, a.i, a.j, a.k), m.l0, m.e_p, m.e_r};
+}
+
+} // namespace ldem

@@ -1,0 +1,82 @@
+// Per-bar material constants of a lattice, built from a material description.
+//
+// Constants that do not vary are stored once per family; only the properties that a
+// field makes vary are stored per bar (empty vectors otherwise).
+#pragma once
+
+#include "lattice/lattice.hpp"
+#include "material/bar_law_bilinear.hpp"
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace ldem {
+
+struct MaterialSpec {
+  double E = 0.0;            // Young's modulus [Pa]
+  double nu = 0.25;          // Poisson's ratio (the lattice is isotropic only for 0.25)
+  double rho = 0.0;          // density [kg/m^3]
+  double Gf = 0.0;           // specific fracture energy [N/m]
+  std::optional<double> e_p; // strain at peak force, or
+  std::optional<double> R_f; // failure factor (eq. 7)
+  // Strain at rupture of the normal bars; when absent e_r = K_r e_p with K_r of eq. 12.
+  // When given, the diagonals' K_r follows from the same Gf so that both kinds keep
+  // the eq. 12 relation (diagonal K_r = normal K_r x ratio of eqs. 14-15 x l_n / l_d).
+  std::optional<double> e_r;
+  bool single_ratio = false; // use the paper's single A^f/A = 0.34 for both kinds (eq. 16)
+  bool allow_low_kr = false; // accept K_r < 1 (unstable softening; the user asked for it)
+};
+
+// Optional per-bar values (one entry per bar, or empty for "uniform").
+struct BarFields {
+  std::vector<double> E;   // Young's modulus
+  std::vector<double> Gf;  // fracture energy
+  std::vector<double> e_p; // peak strain
+};
+
+struct FamilyMaterial {
+  double k = 0.0;      // E A / l0 of a bar with area factor 1 [N/m]
+  double l0 = 0.0;     // reference length
+  double area = 0.0;   // A (area factor 1)
+  double area_f = 0.0; // A^f (area factor 1)
+  double e_p = 0.0, e_r = 0.0;
+};
+
+struct DuctilitySummary {
+  double kr_min_normal = 0, kr_max_normal = 0, kr_min_diag = 0, kr_max_diag = 0;
+  double L_cr_min = 0; // eq. 13, smallest over bars (normal-bar ratio)
+  std::uint64_t bars_below_one = 0;
+  index_t worst_bar = 0; // bar with the smallest K_r
+  double worst_kr = 0;
+};
+
+class BarTable {
+public:
+  // Throws InputError for inconsistent or out-of-range values and, unless
+  // spec.allow_low_kr, for any bar with K_r < 1.
+  BarTable(const Lattice& lattice, const MaterialSpec& spec, const BarFields& fields = {});
+
+  const MaterialSpec& spec() const { return spec_; }
+  const FamilyMaterial& family(int f) const { return families_[f]; }
+  bool per_bar() const { return !k_.empty(); }
+  // Per-bar arrays (empty unless a field varies): stiffness EA/l0 including the
+  // boundary area factor, e_p, e_r.
+  const std::vector<double>& k_bar() const { return k_; }
+  const std::vector<double>& e_p_bar() const { return e_p_; }
+  const std::vector<double>& e_r_bar() const { return e_r_; }
+
+  BilinearLaw law(const Lattice& lattice, index_t bar) const;
+  double area_ratio(BarKind kind) const; // A^f / A
+  const DuctilitySummary& ductility_summary() const { return summary_; }
+  double node_mass_density() const { return spec_.rho; }
+
+private:
+  MaterialSpec spec_;
+  std::array<FamilyMaterial, kFamilies> families_{};
+  std::vector<double> k_, e_p_, e_r_;
+  DuctilitySummary summary_;
+};
+
+} // namespace ldem

@@ -1,0 +1,621 @@
+#include "solver/simulation.hpp"
+
+#include "util/error.hpp"
+#include "util/parallel.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <omp.h>
+
+namespace ldem {
+
+namespace {
+
+// Lumped masses: each module gives rho L^3 / 2 to its centre node and rho L^3 / 16 to each
+// of its 8 corners, so a corner carries (modules sharing it) / 16 rho L^3 (1/2 inside,
+// 1/4 on a face, 1/8 on an edge, 1/16 at a box corner) and the total is rho V exactly.
+std::vector<double> lumped_masses(const Lattice& lat, double rho) {
+  const double m_mod = rho * lat.L() * lat.L() * lat.L();
+  std::vector<double> m(lat.num_nodes());
+  for (index_t k = 0; k <= lat.nz(); ++k)
+    for (index_t j = 0; j <= lat.ny(); ++j)
+      for (index_t i = 0; i <= lat.nx(); ++i)
+        m[lat.corner(i, j, k)] = m_mod * lat.modules_at_corner(i, j, k) / 16.0;
+  for (index_t c = lat.num_corners(); c < lat.num_nodes(); ++c)
+    m[c] = 0.5 * m_mod;
+  return m;
+}
+
+} // namespace
+
+Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
+                       SolverOptions options, std::vector<index_t> precracked)
+    : lat_(std::move(lattice)), table_(std::move(table)), cond_(std::move(conditions)),
+      opt_(options) {
+  const index_t nn = lat_.num_nodes();
+  const index_t nb = lat_.num_bars();
+  if (!(opt_.damping >= 0.0) || !std::isfinite(opt_.damping))
+    throw InputError(
+        fmt::format("damping: expected a coefficient >= 0 in 1/s, got {:g}", opt_.damping));
+
+  mass_ = lumped_masses(lat_, table_.spec().rho);
+  inv_mass_.resize(nn);
+  for (index_t n = 0; n < nn; ++n)
+    inv_mass_[n] = 1.0 / mass_[n];
+
+  stable_ = compute_stable_step(lat_, table_, mass_);
+  const double c = std::sqrt(table_.spec().E / table_.spec().rho);
+  switch (opt_.step.rule) {
+  case TimeStep::Rule::Safety:
+    if (!(opt_.step.safety > 0.0 && opt_.step.safety <= 1.0))
+      throw InputError(fmt::format(
+          "time step safety fraction: expected a value in (0, 1], got {:g}", opt_.step.safety));
+    dt_ = opt_.step.safety * stable_.dt;
+    break;
+  case TimeStep::Rule::Given:
+    dt_ = opt_.step.dt;
+    break;
+  case TimeStep::Rule::Paper:
+    dt_ = 0.6 * lat_.L() / c;
+    break;
+  }
+  if (!(dt_ > 0.0) || !std::isfinite(dt_))
+    throw InputError(fmt::format("time step: expected a positive dt in s, got {:g}", dt_));
+  if (dt_ > stable_.dt)
+    throw InputError(fmt::format(
+        "time step: dt = {:.4g} s ({:.3f} L/c{}) is above the stable limit {:.4g} s ({:.3f} L/c) "
+        "of this lattice (2 / largest eigenfrequency of M^-1 K); use dt <= {:.4g} s or a safety "
+        "fraction",
+        dt_, dt_ * c / lat_.L(),
+        opt_.step.rule == TimeStep::Rule::Paper ? ", the paper's rule" : "", stable_.dt,
+        stable_.dt * c / lat_.L(), stable_.dt));
+
+  ux_.assign(nn, 0.0);
+  uy_.assign(nn, 0.0);
+  uz_.assign(nn, 0.0);
+  wx_.assign(nn, 0.0);
+  wy_.assign(nn, 0.0);
+  wz_.assign(nn, 0.0);
+  vx_.assign(nn, 0.0);
+  vy_.assign(nn, 0.0);
+  vz_.assign(nn, 0.0);
+  held_.assign(nn, 0);
+
+  auto check_set = [&](const NodeSet& set, const char* what) {
+    if (set.nodes.empty())
+      throw InputError(
+          fmt::format("{} on node set \"{}\": the set selects no node", what, set.name));
+    if (set.nodes.back() >= nn)
+      throw InputError(fmt::format("{} on node set \"{}\": node {} does not exist (lattice has {})",
+                                   what, set.name, set.nodes.back(), nn));
+  };
+  for (const FixedDofs& f : cond_.fixed) {
+    check_set(f.set, "fixed DOF");
+    for (index_t n : f.set.nodes)
+      held_[n] |= f.dofs;
+  }
+  for (const ImposedVelocity& v : cond_.velocities) {
+    check_set(v.set, "imposed velocity");
+    for (index_t n : v.set.nodes)
+      held_[n] |= v.dofs;
+    imposed_v_old_.emplace_back(v.set.nodes.size());
+  }
+  for (const NodalLoad& l : cond_.loads)
+    check_set(l.set, "load");
+  if (cond_.plane_strain_axis >= 0) {
+    if (cond_.plane_strain_axis > 2)
+      throw InputError(
+          fmt::format("plane strain axis: expected 0, 1 or 2, got {}", cond_.plane_strain_axis));
+    const DofMask bit = static_cast<DofMask>(1u << cond_.plane_strain_axis);
+    for (index_t n = 0; n < nn; ++n)
+      held_[n] |= bit;
+  }
+  if (!cond_.loads.empty()) {
+    px_.assign(nn, 0.0);
+    py_.assign(nn, 0.0);
+    pz_.assign(nn, 0.0);
+  }
+
+  s_.assign(nb, 0.0);
+  h_.resize(nb);
+  for (int f = 0; f < kFamilies; ++f) {
+    const FamilyInfo& fi = lat_.family(f);
+    for (index_t b = fi.offset; b < fi.offset + fi.count(); ++b)
+      h_[b] = table_.per_bar() ? table_.e_p_bar()[b] : table_.family(f).e_p;
+  }
+  for (index_t b : precracked) {
+    if (b >= nb)
+      throw InputError(fmt::format("pre-crack: bar {} does not exist (lattice has {})", b, nb));
+    h_[b] = BilinearLaw::kPrecracked;
+  }
+
+  // Node rows by plane: corner rows of plane k, then centre rows of plane k.
+  for (const NodeRow& row : node_rows(lat_))
+    node_rows_.push_back(row);
+  std::stable_sort(node_rows_.begin(), node_rows_.end(),
+                   [](const NodeRow& a, const NodeRow& b) { return a.k < b.k; });
+  // Bar rows by plane k of their block index, families interleaved.
+  for (index_t k = 0; k <= lat_.nz(); ++k)
+    for (int f = 0; f < kFamilies; ++f) {
+      const FamilyInfo& fi = lat_.family(f);
+      if (k >= fi.nk)
+        continue;
+      const auto fam = static_cast<Family>(f);
+      for (index_t j = 0; j < fi.nj; ++j) {
+        // Along a row (i running) an edge bar's area factor changes only at i = 0 and
+        // i = ni - 1 (EdgeY, EdgeZ: the x faces); inside it is that of i = 1.
+        const double inner = lat_.area_factor(fam, std::min<index_t>(1, fi.ni - 1), j, k);
+        bar_rows_.push_back({f, j, k, inner, lat_.area_factor(fam, 0, j, k)});
+      }
+    }
+  {
+    // About 0.5 MB of bar forces per block (measured best on 64^3); the blocking is fixed by the
+    // lattice alone.
+    const double plane_bytes = 14.0 * 8.0 * lat_.nx() * lat_.ny();
+    const index_t per_block = std::max<index_t>(1, static_cast<index_t>(5e5 / plane_bytes));
+    std::size_t br = 0, nr = 0;
+    for (index_t k0 = 0; k0 <= lat_.nz(); k0 += per_block) {
+      const index_t k1 = std::min<index_t>(k0 + per_block, lat_.nz() + 1);
+      Block blk{br, br, nr, nr};
+      while (blk.bar_end < bar_rows_.size() && bar_rows_[blk.bar_end].k < k1)
+        ++blk.bar_end;
+      while (blk.node_end < node_rows_.size() && node_rows_[blk.node_end].k < k1)
+        ++blk.node_end;
+      br = blk.bar_end;
+      nr = blk.node_end;
+      blocks_.push_back(blk);
+    }
+  }
+  threads_ = omp_get_max_threads();
+  thread_scratch_.resize(static_cast<std::size_t>(threads_));
+  for (auto& sc : thread_scratch_)
+    sc.resize(3 * (lat_.nx() + 1ull));
+  const std::size_t nrows = node_rows_.size();
+  row_damping_.assign(nrows, 0.0);
+  row_load_mid_.assign(nrows, 0.0);
+  row_load_half_.assign(nrows, 0.0);
+  row_kinetic_.assign(nrows, 0.0);
+  thread_events_.resize(static_cast<std::size_t>(threads_));
+  for (auto& ev : thread_events_)
+    ev.reserve(1024);
+}
+
+void Simulation::set_velocity(const std::function<Vec3(Vec3)>& v_of_X) {
+  for (index_t n = 0; n < lat_.num_nodes(); ++n) {
+    const Vec3 v = v_of_X(lat_.position(n));
+    vx_[n] = (held_[n] & kDofX) ? 0.0 : v.x;
+    vy_[n] = (held_[n] & kDofY) ? 0.0 : v.y;
+    vz_[n] = (held_[n] & kDofZ) ? 0.0 : v.z;
+  }
+}
+
+void Simulation::set_displacement(index_t node, Vec3 u) {
+  ux_[node] = u.x;
+  uy_[node] = u.y;
+  uz_[node] = u.z;
+}
+
+// ---------------------------------------------------------------------------------------
+// Bar pass: s = F / l for every bar, from u_n and the history; history and events.
+
+namespace {
+
+struct RowView {
+  const double *uax, *uay, *uaz, *ubx, *uby, *ubz;
+  double *s, *h;
+};
+
+// The common path of a row: no history change. Returns true if some bar of the row went
+// past its history (softening further or breaking), to be handled by the slow path.
+// `k_row` is E A / l0 times the area factor; per-bar arrays replace it when present.
+template <bool PerBar>
+bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_row, double e_p,
+                    double e_r, const double* __restrict k_bar, const double* __restrict ep_bar,
+                    const double* __restrict er_bar) {
+  const double inv_l0 = 1.0 / l0;
+  int past = 0; // an int, not a bool: GCC vectorises only arithmetic reductions
+#pragma omp simd reduction(+ : past)
+  for (index_t i = 0; i < n; ++i) {
+    const double dx = d0.x + (r.ubx[i] - r.uax[i]);
+    const double dy = d0.y + (r.uby[i] - r.uay[i]);
+    const double dz = d0.z + (r.ubz[i] - r.uaz[i]);
+    const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double e = (l - l0) * inv_l0;
+    const double h = r.h[i];
+    const double ep = PerBar ? ep_bar[i] : e_p;
+    const double er = PerBar ? er_bar[i] : e_r;
+    const double k = PerBar ? k_bar[i] : k_row;
+    const double m = e > h ? e : h;
+    const bool tension = e > 0.0;
+    // Secant factor g = e_p (e_r - m) / ((e_r - e_p) m), 1 in compression (see BilinearLaw).
+    const double num_t = ep * (er - m);
+    const double num = tension ? (num_t > 0.0 ? num_t : 0.0) : 1.0;
+    const double den = tension ? (er - ep) * m : 1.0;
+    r.s[i] = k * (l - l0) * num / (l * den);
+    past += e > h ? 1 : 0;
+  }
+  return past > 0;
+}
+
+} // namespace
+
+void Simulation::bar_rows(std::size_t begin, std::size_t end) {
+  const bool per_bar = table_.per_bar();
+  const double* kb = per_bar ? table_.k_bar().data() : nullptr;
+  const double* epb = per_bar ? table_.e_p_bar().data() : nullptr;
+  const double* erb = per_bar ? table_.e_r_bar().data() : nullptr;
+  const std::uint64_t step = step_;
+  {
+    std::vector<Event>& events = thread_events_[static_cast<std::size_t>(omp_get_thread_num())];
+#pragma omp for schedule(static)
+    for (std::size_t r = begin; r < end; ++r) {
+      const BarRow& row = bar_rows_[r];
+      const FamilyInfo& fi = lat_.family(row.family);
+      const FamilyMaterial& mat = table_.family(row.family);
+      const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
+      const index_t a0 = fi.a.at(0, row.j, row.k), c0 = fi.b.at(0, row.j, row.k);
+      const RowView v{ux_.data() + a0, uy_.data() + a0, uz_.data() + a0, ux_.data() + c0,
+                      uy_.data() + c0, uz_.data() + c0, s_.data() + b0,  h_.data() + b0};
+      const index_t n = fi.ni;
+      bool past;
+      if (per_bar) {
+        past = bar_row_kernel<true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0, epb + b0, erb + b0);
+      } else {
+        past = bar_row_kernel<false>(n, v, fi.d0, fi.l0, mat.k * row.factor, mat.e_p, mat.e_r,
+                                     nullptr, nullptr, nullptr);
+        if (row.end_factor != row.factor) {
+          const double scale = row.end_factor / row.factor;
+          v.s[0] *= scale;
+          v.s[n - 1] *= scale;
+        }
+      }
+      if (!past)
+        continue;
+      // Slow path: some bar strained past its history. Recompute its strain, raise the
+      // history and log the state changes. The force already used max(h, e), so it is
+      // unchanged by the update.
+      for (index_t i = 0; i < n; ++i) {
+        const double dx = fi.d0.x + (v.ubx[i] - v.uax[i]);
+        const double dy = fi.d0.y + (v.uby[i] - v.uay[i]);
+        const double dz = fi.d0.z + (v.ubz[i] - v.uaz[i]);
+        const double e = (std::sqrt(dx * dx + dy * dy + dz * dz) - fi.l0) / fi.l0;
+        const double h = v.h[i];
+        if (!(e > h))
+          continue;
+        const double ep = per_bar ? epb[b0 + i] : mat.e_p;
+        const double er = per_bar ? erb[b0 + i] : mat.e_r;
+        if (h <= ep && e > ep)
+          events.push_back({b0 + i, BarState::Softening, step});
+        if (h < er && e >= er)
+          events.push_back({b0 + i, BarState::Broken, step});
+        v.h[i] = e;
+      }
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Node pass: gather, integrate, and the per-row sums the energy balance needs.
+
+template <bool Damped, bool Loads, bool Report>
+void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
+  const double dt = dt_;
+  const double half = 0.5 * opt_.damping * dt;
+  const double c1 = (1.0 - half) / (1.0 + half), c2 = dt / (1.0 + half);
+  const double alpha = opt_.damping;
+  const index_t max_len = lat_.nx() + 1;
+  {
+    double* __restrict fx = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
+    double* __restrict fy = fx + max_len;
+    double* __restrict fz = fy + max_len;
+#pragma omp for schedule(static)
+    for (std::size_t r = begin; r < end; ++r) {
+      const NodeRow& row = node_rows_[r];
+      const index_t n = row.length, n0 = row.first;
+      const double* __restrict ux = ux_.data() + n0;
+      const double* __restrict uy = uy_.data() + n0;
+      const double* __restrict uz = uz_.data() + n0;
+      for (index_t i = 0; i < n; ++i)
+        fx[i] = fy[i] = fz[i] = 0.0;
+      RowLink links[kMaxRowLinks];
+      const int nl = row_links(lat_, row, links);
+      for (int l = 0; l < nl; ++l) {
+        const RowLink& L = links[l];
+        const double* __restrict s = s_.data() + L.bar_base;
+        const double* __restrict ox = ux_.data() + L.other_base;
+        const double* __restrict oy = uy_.data() + L.other_base;
+        const double* __restrict oz = uz_.data() + L.other_base;
+        const double r0x = L.r0.x, r0y = L.r0.y, r0z = L.r0.z;
+#pragma omp simd
+        for (index_t i = L.ilo; i < L.ihi; ++i) {
+          fx[i] += s[i] * (r0x + (ox[i] - ux[i]));
+          fy[i] += s[i] * (r0y + (oy[i] - uy[i]));
+          fz[i] += s[i] * (r0z + (oz[i] - uz[i]));
+        }
+      }
+      double* __restrict vx = vx_.data() + n0;
+      double* __restrict vy = vy_.data() + n0;
+      double* __restrict vz = vz_.data() + n0;
+      double* __restrict wx = wx_.data() + n0;
+      double* __restrict wy = wy_.data() + n0;
+      double* __restrict wz = wz_.data() + n0;
+      const double* __restrict im = inv_mass_.data() + n0;
+      const double* __restrict m = mass_.data() + n0;
+      const DofMask* __restrict held = held_.data() + n0;
+      const double* __restrict px = Loads ? px_.data() + n0 : nullptr;
+      const double* __restrict py = Loads ? py_.data() + n0 : nullptr;
+      const double* __restrict pz = Loads ? pz_.data() + n0 : nullptr;
+      double damping = 0.0, load_mid = 0.0, load_half = 0.0, kinetic = 0.0;
+#pragma omp simd reduction(+ : damping, load_mid, load_half, kinetic)
+      for (index_t i = 0; i < n; ++i) {
+        const double kx = (held[i] & kDofX) ? 0.0 : 1.0;
+        const double ky = (held[i] & kDofY) ? 0.0 : 1.0;
+        const double kz = (held[i] & kDofZ) ? 0.0 : 1.0;
+        const double gx = Loads ? fx[i] + px[i] : fx[i];
+        const double gy = Loads ? fy[i] + py[i] : fy[i];
+        const double gz = Loads ? fz[i] + pz[i] : fz[i];
+        const double ox = vx[i], oy = vy[i], oz = vz[i];
+        const double nx = kx * (c1 * ox + c2 * gx * im[i]);
+        const double ny = ky * (c1 * oy + c2 * gy * im[i]);
+        const double nz = kz * (c1 * oz + c2 * gz * im[i]);
+        vx[i] = nx;
+        vy[i] = ny;
+        vz[i] = nz;
+        wx[i] = ux[i] + dt * nx;
+        wy[i] = uy[i] + dt * ny;
+        wz[i] = uz[i] + dt * nz;
+        // Mid-step velocity v_n = (v_{n-1/2} + v_{n+1/2}) / 2 of the free DOF.
+        const double mx = 0.5 * kx * (ox + nx), my = 0.5 * ky * (oy + ny),
+                     mz = 0.5 * kz * (oz + nz);
+        if constexpr (Damped)
+          damping += alpha * dt * m[i] * (mx * mx + my * my + mz * mz);
+        if constexpr (Loads)
+          load_mid += dt * (px[i] * mx + py[i] * my + pz[i] * mz);
+        if constexpr (Report) {
+          kinetic += 0.5 * m[i] * (mx * mx + my * my + mz * mz);
+          if constexpr (Loads)
+            load_half += 0.5 * dt * (kx * px[i] * ox + ky * py[i] * oy + kz * pz[i] * oz);
+        }
+      }
+      row_damping_[r] = damping;
+      row_load_mid_[r] = load_mid;
+      row_load_half_[r] = load_half;
+      row_kinetic_[r] = kinetic;
+    }
+  }
+}
+
+template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() {
+#pragma omp parallel num_threads(threads_)
+  for (const Block& blk : blocks_) {
+    bar_rows(blk.bar_begin, blk.bar_end);
+    node_rows_range<Damped, Loads, Report>(blk.node_begin, blk.node_end);
+  }
+}
+
+// Internal force on one node, gathered in the same link order as the node pass.
+Vec3 Simulation::gathered_force(index_t node) const {
+  const NodeAddress a = lat_.node_address(node);
+  const NodeRow row{a.centre, a.j, a.k,
+                    a.centre ? lat_.centre(0, a.j, a.k) : lat_.corner(0, a.j, a.k),
+                    a.centre ? lat_.nx() : lat_.nx() + 1};
+  RowLink links[kMaxRowLinks];
+  const int nl = row_links(lat_, row, links);
+  Vec3 f;
+  for (int l = 0; l < nl; ++l) {
+    const RowLink& L = links[l];
+    if (a.i < L.ilo || a.i >= L.ihi)
+      continue;
+    const double s = s_[static_cast<std::size_t>(L.bar_base + a.i)];
+    const auto o = static_cast<index_t>(L.other_base + a.i);
+    f.x += s * (L.r0.x + (ux_[o] - ux_[node]));
+    f.y += s * (L.r0.y + (uy_[o] - uy_[node]));
+    f.z += s * (L.r0.z + (uz_[o] - uz_[node]));
+  }
+  return f;
+}
+
+void Simulation::apply_loads(double t) {
+  for (const NodalLoad& load : cond_.loads)
+    for (index_t n : load.set.nodes)
+      px_[n] = py_[n] = pz_[n] = 0.0;
+  for (const NodalLoad& load : cond_.loads) {
+    const double s = load.scale(t);
+    for (index_t n : load.set.nodes) {
+      px_[n] += s * load.force.x;
+      py_[n] += s * load.force.y;
+      pz_[n] += s * load.force.z;
+    }
+  }
+}
+
+// Imposed velocities at t_{n+1/2}: set v and u_{n+1}, and account the reaction's work
+// R_n . dt (v_{n-1/2} + v_{n+1/2}) / 2 with R_n = m a_n + a m v_n - f_int - P, the force the
+// support must apply. Returns nothing: adds to the per-step sums below.
+void Simulation::apply_velocities(double t, bool report) {
+  const double dt = dt_, half = 0.5 * opt_.damping * dt;
+  double work = 0.0, work_half = 0.0, damping = 0.0, kinetic = 0.0;
+  for (std::size_t c = 0; c < cond_.velocities.size(); ++c) {
+    const ImposedVelocity& iv = cond_.velocities[c];
+    const double s = iv.scale(t + 0.5 * dt);
+    const double target[3] = {s * iv.velocity.x, s * iv.velocity.y, s * iv.velocity.z};
+    for (std::size_t q = 0; q < iv.set.nodes.size(); ++q) {
+      const index_t n = iv.set.nodes[q];
+      const Vec3 f = gathered_force(n);
+      const double fint[3] = {f.x + (px_.empty() ? 0.0 : px_[n]),
+                              f.y + (py_.empty() ? 0.0 : py_[n]),
+                              f.z + (pz_.empty() ? 0.0 : pz_[n])};
+      const double vold[3] = {imposed_v_old_[c][q].x, imposed_v_old_[c][q].y,
+                              imposed_v_old_[c][q].z};
+      double* v[3] = {&vx_[n], &vy_[n], &vz_[n]};
+      double* u[3] = {&ux_[n], &uy_[n], &uz_[n]};
+      double* w[3] = {&wx_[n], &wy_[n], &wz_[n]};
+      for (int d = 0; d < 3; ++d) {
+        if (!(iv.dofs & (1u << d)))
+          continue;
+        // What the free update would give, and the reaction that turns it into the target.
+        const double v_free = ((1.0 - half) * vold[d] + dt * fint[d] / mass_[n]) / (1.0 + half);
+        const double R = mass_[n] * (target[d] - v_free) * (1.0 + half) / dt;
+        const double vmid = 0.5 * (vold[d] + target[d]);
+        work += R * dt * vmid;
+        damping += opt_.damping * dt * mass_[n] * vmid * vmid;
+        if (report) {
+          work_half += 0.5 * R * dt * vold[d];
+          kinetic += 0.5 * mass_[n] * vmid * vmid;
+        }
+        *v[d] = target[d];
+        *w[d] = *u[d] + dt * target[d];
+      }
+    }
+  }
+  cond_work_ = work;
+  cond_work_half_ = work_half;
+  cond_damping_ = damping;
+  cond_kinetic_ = kinetic;
+}
+
+void Simulation::step(bool report) {
+  const double t = time();
+  const bool energies = report || step_ == 0;
+  if (!cond_.loads.empty())
+    apply_loads(t);
+  for (std::size_t c = 0; c < cond_.velocities.size(); ++c) {
+    const auto& nodes = cond_.velocities[c].set.nodes;
+    for (std::size_t q = 0; q < nodes.size(); ++q)
+      imposed_v_old_[c][q] = {vx_[nodes[q]], vy_[nodes[q]], vz_[nodes[q]]};
+  }
+  const bool damped = opt_.damping > 0.0, loads = !cond_.loads.empty();
+  // Pick the specialisation of the node update once per step.
+  if (damped) {
+    if (loads)
+      energies ? advance_rows<true, true, true>() : advance_rows<true, true, false>();
+    else
+      energies ? advance_rows<true, false, true>() : advance_rows<true, false, false>();
+  } else {
+    if (loads)
+      energies ? advance_rows<false, true, true>() : advance_rows<false, true, false>();
+    else
+      energies ? advance_rows<false, false, true>() : advance_rows<false, false, false>();
+  }
+  apply_velocities(t, energies);
+
+  double damping = cond_damping_, load_mid = cond_work_;
+  for (std::size_t r = 0; r < node_rows_.size(); ++r) {
+    damping += row_damping_[r];
+    load_mid += row_load_mid_[r];
+  }
+  if (energies) {
+    double kinetic = cond_kinetic_, work_half = cond_work_half_;
+    for (std::size_t r = 0; r < node_rows_.size(); ++r) {
+      kinetic += row_kinetic_[r];
+      work_half += row_load_half_[r];
+    }
+    // Damping: the part of this step's dissipation a dt v_n . m v_n that lies before t_n,
+    // taken as half of it (the exact split a m v_n . dt v_{n-1/2} / 2 differs by O(dt^2)).
+    const double damping_half = 0.5 * damping;
+    const double elastic = stored_energy();
+    const double damage = deterministic_sum(lat_.num_bars(), [&](std::int64_t b) {
+      return table_.law(lat_, static_cast<index_t>(b)).dissipated_energy(h_[b]);
+    });
+    if (step_ == 0)
+      ledger_.set_initial(elastic + kinetic);
+    report_ = ledger_.report(t, elastic, kinetic, damage, work_half, damping_half);
+  }
+  ledger_.add_step(load_mid, damping);
+  ux_.swap(wx_);
+  uy_.swap(wy_);
+  uz_.swap(wz_);
+  ++step_;
+}
+
+// ---------------------------------------------------------------------------------------
+
+std::vector<Event> Simulation::take_events() {
+  std::vector<Event> all;
+  for (auto& ev : thread_events_) {
+    all.insert(all.end(), ev.begin(), ev.end());
+    ev.clear();
+  }
+  std::sort(all.begin(), all.end(), [](const Event& a, const Event& b) {
+    if (a.step != b.step)
+      return a.step < b.step;
+    if (a.bar != b.bar)
+      return a.bar < b.bar;
+    return a.state < b.state;
+  });
+  return all;
+}
+
+BarState Simulation::bar_state(index_t bar) const {
+  return table_.law(lat_, bar).state(h_[bar]);
+}
+
+namespace {
+double bar_strain(const Lattice& lat, const std::vector<double>& ux, const std::vector<double>& uy,
+                  const std::vector<double>& uz, index_t bar) {
+  const auto [a, b] = lat.bar_nodes(bar);
+  const FamilyInfo& fi = lat.family(lat.bar_address(bar).family);
+  const double dx = fi.d0.x + (ux[b] - ux[a]), dy = fi.d0.y + (uy[b] - uy[a]),
+               dz = fi.d0.z + (uz[b] - uz[a]);
+  return (std::sqrt(dx * dx + dy * dy + dz * dz) - fi.l0) / fi.l0;
+}
+} // namespace
+
+double Simulation::bar_force(index_t bar) const {
+  return table_.law(lat_, bar).force(bar_strain(lat_, ux_, uy_, uz_, bar), h_[bar]);
+}
+
+double Simulation::stored_energy() const {
+  return deterministic_sum(lat_.num_bars(), [&](std::int64_t b) {
+    const auto bar = static_cast<index_t>(b);
+    return table_.law(lat_, bar).stored_energy(bar_strain(lat_, ux_, uy_, uz_, bar), h_[bar]);
+  });
+}
+
+void Simulation::internal_forces(std::vector<double>& fx, std::vector<double>& fy,
+                                 std::vector<double>& fz) const {
+  const index_t nn = lat_.num_nodes();
+  fx.assign(nn, 0.0);
+  fy.assign(nn, 0.0);
+  fz.assign(nn, 0.0);
+  for (index_t bar = 0; bar < lat_.num_bars(); ++bar) {
+    const auto [a, b] = lat_.bar_nodes(bar);
+    const FamilyInfo& fi = lat_.family(lat_.bar_address(bar).family);
+    const double dx = fi.d0.x + (ux_[b] - ux_[a]), dy = fi.d0.y + (uy_[b] - uy_[a]),
+                 dz = fi.d0.z + (uz_[b] - uz_[a]);
+    const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double F = table_.law(lat_, bar).force((l - fi.l0) / fi.l0, h_[bar]);
+    // A bar in tension pulls its first node towards the second.
+    fx[a] += F * dx / l;
+    fy[a] += F * dy / l;
+    fz[a] += F * dz / l;
+    fx[b] -= F * dx / l;
+    fy[b] -= F * dy / l;
+    fz[b] -= F * dz / l;
+  }
+}
+
+std::uint64_t Simulation::broken_count() const {
+  std::uint64_t n = 0;
+  for (index_t b = 0; b < lat_.num_bars(); ++b)
+    n += bar_state(b) == BarState::Broken;
+  return n;
+}
+
+std::uint64_t Simulation::softening_count() const {
+  std::uint64_t n = 0;
+  for (index_t b = 0; b < lat_.num_bars(); ++b)
+    n += bar_state(b) == BarState::Softening;
+  return n;
+}
+
+double Simulation::bytes_per_module() const {
+  const double per_node = 9 * sizeof(double) + 2 * sizeof(double) + sizeof(DofMask) +
+                          (px_.empty() ? 0 : 3 * sizeof(double));
+  const double per_bar = 2 * sizeof(double) + (table_.per_bar() ? 3 * sizeof(double) : 0);
+  return (per_node * lat_.num_nodes() + per_bar * lat_.num_bars()) /
+         static_cast<double>(lat_.num_modules());
+}
+
+} // namespace ldem

@@ -1,0 +1,181 @@
+// Explicit central-difference dynamics of the lattice: the time-step loop.
+//
+// State at step n: displacements u_n (reference coordinates are computed from the
+// lattice, so current coordinates are X + u, large displacements included) and the
+// half-step velocities v_{n-1/2}. One step:
+//   1. bar pass   : every bar's strain, force over current length s = F / l, history,
+//                   events (one writer per bar);
+//   2. node pass  : each node gathers its bars in a fixed order (RowLink), then
+//                   v_{n+1/2} = [(1 - a dt/2) v_{n-1/2} + dt f / m] / (1 + a dt/2),
+//                   u_{n+1} = u_n + dt v_{n+1/2}  (a: mass-proportional damping);
+//   3. conditions : imposed velocities and their reactions.
+// Both passes split work by whole rows, so every number is the same whatever the
+// thread count.
+#pragma once
+
+#include "energy/ledger.hpp"
+#include "lattice/lattice.hpp"
+#include "lattice/node_set.hpp"
+#include "material/bar_table.hpp"
+#include "solver/stable_step.hpp"
+#include "solver/time_function.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace ldem {
+
+// Degrees of freedom as bits: x = 1, y = 2, z = 4.
+using DofMask = std::uint8_t;
+inline constexpr DofMask kDofX = 1, kDofY = 2, kDofZ = 4, kDofAll = 7;
+
+struct FixedDofs {
+  NodeSet set;
+  DofMask dofs = kDofAll;
+};
+
+// v = velocity * scale(t) on the chosen DOF of every node of the set.
+struct ImposedVelocity {
+  NodeSet set;
+  DofMask dofs = kDofAll;
+  Vec3 velocity;
+  TimeFunction scale;
+};
+
+// A force `force * scale(t)` [N] on every node of the set.
+struct NodalLoad {
+  NodeSet set;
+  Vec3 force;
+  TimeFunction scale;
+};
+
+struct Conditions {
+  std::vector<FixedDofs> fixed;
+  std::vector<ImposedVelocity> velocities;
+  std::vector<NodalLoad> loads;
+  int plane_strain_axis = -1; // 0, 1, 2: that displacement is zero at every node
+};
+
+struct TimeStep {
+  enum class Rule { Safety, Given, Paper };
+  Rule rule = Rule::Safety;
+  double safety = 0.9; // fraction of the stable step (Rule::Safety)
+  double dt = 0.0;     // Rule::Given
+};
+
+struct SolverOptions {
+  TimeStep step;
+  double damping = 0.0; // mass-proportional damping coefficient a [1/s], C = a M
+};
+
+struct Event {
+  index_t bar;
+  BarState state; // Softening or Broken
+  std::uint64_t step;
+};
+
+class Simulation {
+public:
+  // `precracked`: bars broken from the start (sorted). Throws InputError for an unstable
+  // or invalid time step, damping < 0, or conditions that refer to missing nodes.
+  Simulation(Lattice lattice, BarTable table, Conditions conditions, SolverOptions options,
+             std::vector<index_t> precracked = {});
+
+  const Lattice& lattice() const { return lat_; }
+  const BarTable& table() const { return table_; }
+  const StableStep& stable_step() const { return stable_; }
+  double dt() const { return dt_; }
+  std::uint64_t step_count() const { return step_; }
+  double time() const { return static_cast<double>(step_) * dt_; }
+  double mass(index_t node) const { return mass_[node]; }
+
+  // Initial velocities (before the first step), e.g. a ramp; taken as v_{-1/2}.
+  void set_velocity(const std::function<Vec3(Vec3 X)>& v_of_X);
+
+  // One step from t_n to t_{n+1}. With `report`, the energies at t_n are computed during
+  // the step and kept in last_report().
+  void step(bool report = false);
+  const EnergyReport& last_report() const { return report_; }
+
+  // Events since the last call, in (step, bar) order.
+  std::vector<Event> take_events();
+
+  Vec3 displacement(index_t node) const { return {ux_[node], uy_[node], uz_[node]}; }
+  Vec3 half_step_velocity(index_t node) const { return {vx_[node], vy_[node], vz_[node]}; }
+  void set_displacement(index_t node, Vec3 u);
+  BarState bar_state(index_t bar) const;
+  double bar_history(index_t bar) const { return h_[bar]; }
+  // Axial force of a bar at the current displacements and history [N].
+  double bar_force(index_t bar) const;
+
+  // Internal forces f_int (the sum of bar forces acting on each node) and the stored
+  // energy at the current displacements, history unchanged. For tests and probes.
+  void internal_forces(std::vector<double>& fx, std::vector<double>& fy,
+                       std::vector<double>& fz) const;
+  double stored_energy() const;
+
+  std::uint64_t broken_count() const;
+  std::uint64_t softening_count() const;
+  // Bytes held per module by the arrays the step loop touches.
+  double bytes_per_module() const;
+
+private:
+  template <bool Damped, bool Loads, bool Report> void advance_rows();
+  void bar_rows(std::size_t begin, std::size_t end);
+  template <bool Damped, bool Loads, bool Report>
+  void node_rows_range(std::size_t begin, std::size_t end);
+  void apply_loads(double t);
+  void apply_velocities(double t, bool report);
+  void compute_energies(bool report);
+  Vec3 gathered_force(index_t node) const;
+
+  Lattice lat_;
+  BarTable table_;
+  Conditions cond_;
+  SolverOptions opt_;
+  StableStep stable_;
+  double dt_ = 0.0;
+  std::uint64_t step_ = 0;
+
+  std::vector<NodeRow> node_rows_;
+  struct BarRow {
+    int family;
+    index_t j, k;
+    double factor, end_factor; // area factors of the row's bars (inner, first/last)
+  };
+  std::vector<BarRow> bar_rows_;
+  // The step walks the body in blocks of a few k-planes: first the bars of the block's
+  // planes, then its nodes (which need bars of their own plane and the one below), so the
+  // bar forces are still in cache when they are gathered.
+  struct Block {
+    std::size_t bar_begin, bar_end, node_begin, node_end;
+  };
+  std::vector<Block> blocks_;
+  int threads_ = 1;
+  std::vector<std::vector<double>> thread_scratch_;
+
+  // Node arrays (structure of arrays).
+  std::vector<double> ux_, uy_, uz_, wx_, wy_, wz_; // u_n and the next-step buffer
+  std::vector<double> vx_, vy_, vz_;                // v_{n-1/2}
+  std::vector<double> mass_, inv_mass_;
+  std::vector<DofMask> held_;        // DOF fixed or imposed
+  std::vector<double> px_, py_, pz_; // nodal loads at t_n (only with loads)
+  // Bar arrays.
+  std::vector<double> s_, h_; // force over current length, history
+
+  // Per-row partial sums (deterministic reductions) and per-thread scratch.
+  std::vector<double> row_damping_, row_load_mid_, row_load_half_, row_kinetic_;
+  std::vector<std::vector<Event>> thread_events_;
+  std::vector<std::uint64_t> thread_flags_;
+  // Imposed-velocity nodes: velocity before the node pass.
+  std::vector<std::vector<Vec3>> imposed_v_old_;
+
+  // Sums over the imposed-velocity DOF of the current step (apply_velocities).
+  double cond_work_ = 0.0, cond_work_half_ = 0.0, cond_damping_ = 0.0, cond_kinetic_ = 0.0;
+
+  Ledger ledger_;
+  EnergyReport report_{};
+};
+
+} // namespace ldem

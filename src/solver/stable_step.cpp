@@ -1,0 +1,187 @@
+#include "solver/stable_step.hpp"
+
+#include "util/parallel.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+namespace ldem {
+
+namespace {
+
+// Undamaged axial stiffness EA / l0 of every bar (including the boundary area factor).
+std::vector<double> bar_stiffness(const Lattice& lat, const BarTable& table) {
+  if (table.per_bar())
+    return table.k_bar();
+  std::vector<double> k(lat.num_bars());
+  for (int f = 0; f < kFamilies; ++f) {
+    const FamilyInfo& fi = lat.family(f);
+    const double kf = table.family(f).k;
+    for (index_t kk = 0; kk < fi.nk; ++kk)
+      for (index_t j = 0; j < fi.nj; ++j)
+        for (index_t i = 0; i < fi.ni; ++i)
+          k[lat.bar(static_cast<Family>(f), i, j, kk)] =
+              kf * lat.area_factor(static_cast<Family>(f), i, j, kk);
+  }
+  return k;
+}
+
+// Largest eigenvalue of a symmetric tridiagonal matrix (diagonal a, off-diagonal b[1..m-1])
+// by bisection on Sturm sequence counts.
+double tridiagonal_max_eigenvalue(const std::vector<double>& a, const std::vector<double>& b) {
+  const std::size_t m = a.size();
+  double lo = 0.0, hi = 0.0;
+  for (std::size_t i = 0; i < m; ++i) {
+    const double r = (i > 0 ? std::abs(b[i]) : 0.0) + (i + 1 < m ? std::abs(b[i + 1]) : 0.0);
+    lo = std::min(lo, a[i] - r);
+    hi = std::max(hi, a[i] + r);
+  }
+  auto count_below = [&](double x) { // eigenvalues < x
+    int count = 0;
+    double d = 1.0;
+    for (std::size_t i = 0; i < m; ++i) {
+      d = a[i] - x - (i > 0 ? b[i] * b[i] / d : 0.0);
+      if (d == 0.0)
+        d = -1e-300;
+      if (d < 0.0)
+        ++count;
+    }
+    return count;
+  };
+  for (int it = 0; it < 200 && hi - lo > 1e-15 * std::max(std::abs(hi), 1.0); ++it) {
+    const double mid = 0.5 * (lo + hi);
+    if (count_below(mid) >= static_cast<int>(m))
+      hi = mid;
+    else
+      lo = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+} // namespace
+
+StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
+                               const std::vector<double>& mass) {
+  const std::vector<double> kb = bar_stiffness(lat, table);
+  const std::vector<NodeRow> rows = node_rows(lat);
+  const std::int64_t nrows = static_cast<std::int64_t>(rows.size());
+  const std::size_t n = lat.num_nodes();
+  std::vector<double> rsm(n); // 1 / sqrt(m)
+  for (std::size_t i = 0; i < n; ++i)
+    rsm[i] = 1.0 / std::sqrt(mass[i]);
+
+  // y = M^-1/2 K M^-1/2 x, gathered per node (x, y interleaved: 3 per node).
+  auto apply = [&](const std::vector<double>& x, std::vector<double>& y) {
+#pragma omp parallel for schedule(static)
+    for (std::int64_t r = 0; r < nrows; ++r) {
+      RowLink links[kMaxRowLinks];
+      const int nl = row_links(lat, rows[r], links);
+      for (index_t i = 0; i < rows[r].length; ++i) {
+        const index_t node = rows[r].first + i;
+        double acc[3] = {0, 0, 0};
+        for (int l = 0; l < nl; ++l) {
+          if (i < links[l].ilo || i >= links[l].ihi)
+            continue;
+          const RowLink& L = links[l];
+          const auto other = static_cast<index_t>(L.other_base + i);
+          const double len = std::sqrt(L.r0.x * L.r0.x + L.r0.y * L.r0.y + L.r0.z * L.r0.z);
+          const double e[3] = {L.r0.x / len, L.r0.y / len, L.r0.z / len};
+          double proj = 0.0;
+          for (int d = 0; d < 3; ++d)
+            proj += e[d] * (x[3 * node + d] * rsm[node] - x[3 * other + d] * rsm[other]);
+          const double t = kb[static_cast<std::size_t>(L.bar_base + i)] * proj;
+          for (int d = 0; d < 3; ++d)
+            acc[d] += t * e[d];
+        }
+        for (int d = 0; d < 3; ++d)
+          y[3 * node + d] = acc[d] * rsm[node];
+      }
+    }
+  };
+  auto dot = [&](const std::vector<double>& a, const std::vector<double>& b) {
+    return deterministic_sum(static_cast<std::int64_t>(a.size()),
+                             [&](std::int64_t i) { return a[i] * b[i]; });
+  };
+
+  StableStep out;
+  // Gershgorin: every eigenvalue lies below the largest absolute row sum.
+  double bound = 0.0;
+  for (const NodeRow& row : rows) {
+    RowLink links[kMaxRowLinks];
+    const int nl = row_links(lat, row, links);
+    for (index_t i = 0; i < row.length; ++i) {
+      const index_t node = row.first + i;
+      double diag[3][3] = {}, off[3] = {};
+      for (int l = 0; l < nl; ++l) {
+        if (i < links[l].ilo || i >= links[l].ihi)
+          continue;
+        const RowLink& L = links[l];
+        const auto other = static_cast<index_t>(L.other_base + i);
+        const double len = std::sqrt(L.r0.x * L.r0.x + L.r0.y * L.r0.y + L.r0.z * L.r0.z);
+        const double e[3] = {L.r0.x / len, L.r0.y / len, L.r0.z / len};
+        const double k = kb[static_cast<std::size_t>(L.bar_base + i)];
+        for (int p = 0; p < 3; ++p) {
+          for (int q = 0; q < 3; ++q)
+            diag[p][q] += k * e[p] * e[q] / mass[node];
+          off[p] += k * std::abs(e[p]) * (std::abs(e[0]) + std::abs(e[1]) + std::abs(e[2])) *
+                    rsm[node] * rsm[other];
+        }
+      }
+      for (int p = 0; p < 3; ++p)
+        bound = std::max(bound, std::abs(diag[p][0]) + std::abs(diag[p][1]) + std::abs(diag[p][2]) +
+                                    off[p]);
+    }
+  }
+  out.omega_bound = std::sqrt(bound);
+  out.dt_bound = 2.0 / out.omega_bound;
+
+  // Lanczos with a deterministic start vector.
+  std::vector<double> q(3 * n), q_prev(3 * n, 0.0), w(3 * n);
+  std::uint64_t seed = 0x9E3779B97F4A7C15ull;
+  for (double& v : q) {
+    seed ^= seed << 13;
+    seed ^= seed >> 7;
+    seed ^= seed << 17;
+    v = static_cast<double>(seed >> 11) * 0x1.0p-53 - 0.5;
+  }
+  const double q_norm = std::sqrt(dot(q, q));
+  for (double& v : q)
+    v /= q_norm;
+  std::vector<double> alpha, beta{0.0};
+  double theta = 0.0, theta_prev = 0.0;
+  const int max_iter = 400;
+  int stable_iters = 0;
+  for (int it = 0; it < max_iter; ++it) {
+    apply(q, w);
+    const double a = dot(w, q);
+    const double b_prev = beta.back();
+#pragma omp parallel for schedule(static)
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(w.size()); ++i)
+      w[i] -= a * q[i] + b_prev * q_prev[i];
+    alpha.push_back(a);
+    theta = tridiagonal_max_eigenvalue(alpha, beta);
+    out.iterations = it + 1;
+    const double b = std::sqrt(dot(w, w));
+    if (it > 0 && std::abs(theta - theta_prev) <= 1e-7 * theta) {
+      if (++stable_iters >= 5)
+        break;
+    } else {
+      stable_iters = 0;
+    }
+    theta_prev = theta;
+    if (!(b > 1e-14 * theta))
+      break; // invariant subspace found: theta is exact
+    beta.push_back(b);
+#pragma omp parallel for schedule(static)
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(w.size()); ++i) {
+      q_prev[i] = q[i];
+      q[i] = w[i] / b;
+    }
+  }
+  out.omega_max = std::sqrt(theta);
+  out.dt = 2.0 / out.omega_max;
+  return out;
+}
+
+} // namespace ldem
