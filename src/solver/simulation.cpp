@@ -44,33 +44,6 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   for (index_t n = 0; n < nn; ++n)
     inv_mass_[n] = 1.0 / mass_[n];
 
-  stable_ = compute_stable_step(lat_, table_, mass_);
-  const double c = std::sqrt(table_.spec().E / table_.spec().rho);
-  switch (opt_.step.rule) {
-  case TimeStep::Rule::Safety:
-    if (!(opt_.step.safety > 0.0 && opt_.step.safety <= 1.0))
-      throw InputError(fmt::format(
-          "time step safety fraction: expected a value in (0, 1], got {:g}", opt_.step.safety));
-    dt_ = opt_.step.safety * stable_.dt;
-    break;
-  case TimeStep::Rule::Given:
-    dt_ = opt_.step.dt;
-    break;
-  case TimeStep::Rule::Paper:
-    dt_ = 0.6 * lat_.L() / c;
-    break;
-  }
-  if (!(dt_ > 0.0) || !std::isfinite(dt_))
-    throw InputError(fmt::format("time step: expected a positive dt in s, got {:g}", dt_));
-  if (dt_ > stable_.dt)
-    throw InputError(fmt::format(
-        "time step: dt = {:.4g} s ({:.3f} L/c{}) is above the stable limit {:.4g} s ({:.3f} L/c) "
-        "of this lattice (2 / largest eigenfrequency of M^-1 K); use dt <= {:.4g} s or a safety "
-        "fraction",
-        dt_, dt_ * c / lat_.L(),
-        opt_.step.rule == TimeStep::Rule::Paper ? ", the paper's rule" : "", stable_.dt,
-        stable_.dt * c / lat_.L(), stable_.dt));
-
   ux_.assign(nn, 0.0);
   uy_.assign(nn, 0.0);
   uz_.assign(nn, 0.0);
@@ -111,6 +84,33 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     for (index_t n = 0; n < nn; ++n)
       held_[n] |= bit;
   }
+  stable_ = compute_stable_step(lat_, table_, mass_, held_);
+  const double c = std::sqrt(table_.spec().E / table_.spec().rho);
+  switch (opt_.step.rule) {
+  case TimeStep::Rule::Safety:
+    if (!(opt_.step.safety > 0.0 && opt_.step.safety <= 1.0))
+      throw InputError(fmt::format(
+          "time step safety fraction: expected a value in (0, 1], got {:g}", opt_.step.safety));
+    dt_ = opt_.step.safety * stable_.dt;
+    break;
+  case TimeStep::Rule::Given:
+    dt_ = opt_.step.dt;
+    break;
+  case TimeStep::Rule::Paper:
+    dt_ = 0.6 * lat_.L() / c;
+    break;
+  }
+  if (!(dt_ > 0.0) || !std::isfinite(dt_))
+    throw InputError(fmt::format("time step: expected a positive dt in s, got {:g}", dt_));
+  if (dt_ > stable_.dt)
+    throw InputError(fmt::format(
+        "time step: dt = {:.4g} s ({:.3f} L/c{}) is above the stable limit {:.4g} s ({:.3f} L/c) "
+        "of this lattice (2 / largest eigenfrequency of M^-1 K); use dt <= {:.4g} s or a safety "
+        "fraction",
+        dt_, dt_ * c / lat_.L(),
+        opt_.step.rule == TimeStep::Rule::Paper ? ", the paper's rule" : "", stable_.dt,
+        stable_.dt * c / lat_.L(), stable_.dt));
+
   if (!cond_.loads.empty()) {
     px_.assign(nn, 0.0);
     py_.assign(nn, 0.0);
@@ -188,6 +188,12 @@ void Simulation::set_velocity(const std::function<Vec3(Vec3)>& v_of_X) {
     vy_[n] = (held_[n] & kDofY) ? 0.0 : v.y;
     vz_[n] = (held_[n] & kDofZ) ? 0.0 : v.z;
   }
+}
+
+void Simulation::set_half_step_velocity(index_t node, Vec3 v) {
+  vx_[node] = v.x;
+  vy_[node] = v.y;
+  vz_[node] = v.z;
 }
 
 void Simulation::set_displacement(index_t node, Vec3 u) {

@@ -104,6 +104,7 @@ public:
   Vec3 displacement(index_t node) const { return {ux_[node], uy_[node], uz_[node]}; }
   Vec3 half_step_velocity(index_t node) const { return {vx_[node], vy_[node], vz_[node]}; }
   void set_displacement(index_t node, Vec3 u);
+  void set_half_step_velocity(index_t node, Vec3 v);
   BarState bar_state(index_t bar) const;
   double bar_history(index_t bar) const { return h_[bar]; }
   // Axial force of a bar at the current displacements and history [N].

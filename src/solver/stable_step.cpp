@@ -62,7 +62,11 @@ double tridiagonal_max_eigenvalue(const std::vector<double>& a, const std::vecto
 } // namespace
 
 StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
-                               const std::vector<double>& mass) {
+                               const std::vector<double>& mass,
+                               const std::vector<unsigned char>& held) {
+  auto free_dof = [&](index_t node, int d) {
+    return held.empty() || !(held[node] & (1u << d)) ? 1.0 : 0.0;
+  };
   const std::vector<double> kb = bar_stiffness(lat, table);
   const std::vector<NodeRow> rows = node_rows(lat);
   const std::int64_t nrows = static_cast<std::int64_t>(rows.size());
@@ -89,13 +93,14 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
           const double e[3] = {L.r0.x / len, L.r0.y / len, L.r0.z / len};
           double proj = 0.0;
           for (int d = 0; d < 3; ++d)
-            proj += e[d] * (x[3 * node + d] * rsm[node] - x[3 * other + d] * rsm[other]);
+            proj += e[d] * (x[3 * node + d] * rsm[node] * free_dof(node, d) -
+                            x[3 * other + d] * rsm[other] * free_dof(other, d));
           const double t = kb[static_cast<std::size_t>(L.bar_base + i)] * proj;
           for (int d = 0; d < 3; ++d)
             acc[d] += t * e[d];
         }
         for (int d = 0; d < 3; ++d)
-          y[3 * node + d] = acc[d] * rsm[node];
+          y[3 * node + d] = acc[d] * rsm[node] * free_dof(node, d);
       }
     }
   };
@@ -121,15 +126,17 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
         const double len = std::sqrt(L.r0.x * L.r0.x + L.r0.y * L.r0.y + L.r0.z * L.r0.z);
         const double e[3] = {L.r0.x / len, L.r0.y / len, L.r0.z / len};
         const double k = kb[static_cast<std::size_t>(L.bar_base + i)];
+        const double eo = std::abs(e[0]) * free_dof(other, 0) +
+                          std::abs(e[1]) * free_dof(other, 1) + std::abs(e[2]) * free_dof(other, 2);
         for (int p = 0; p < 3; ++p) {
           for (int q = 0; q < 3; ++q)
-            diag[p][q] += k * e[p] * e[q] / mass[node];
-          off[p] += k * std::abs(e[p]) * (std::abs(e[0]) + std::abs(e[1]) + std::abs(e[2])) *
-                    rsm[node] * rsm[other];
+            diag[p][q] += k * e[p] * e[q] / mass[node] * free_dof(node, q);
+          off[p] += k * std::abs(e[p]) * eo * rsm[node] * rsm[other];
         }
       }
       for (int p = 0; p < 3; ++p)
-        bound = std::max(bound, std::abs(diag[p][0]) + std::abs(diag[p][1]) + std::abs(diag[p][2]) +
+        if (free_dof(node, p) > 0.0)
+          bound = std::max(bound, std::abs(diag[p][0]) + std::abs(diag[p][1]) + std::abs(diag[p][2]) +
                                     off[p]);
     }
   }
@@ -139,11 +146,12 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
   // Lanczos with a deterministic start vector.
   std::vector<double> q(3 * n), q_prev(3 * n, 0.0), w(3 * n);
   std::uint64_t seed = 0x9E3779B97F4A7C15ull;
-  for (double& v : q) {
+  for (std::size_t i = 0; i < q.size(); ++i) {
     seed ^= seed << 13;
     seed ^= seed >> 7;
     seed ^= seed << 17;
-    v = static_cast<double>(seed >> 11) * 0x1.0p-53 - 0.5;
+    q[i] = (static_cast<double>(seed >> 11) * 0x1.0p-53 - 0.5) *
+           free_dof(static_cast<index_t>(i / 3), static_cast<int>(i % 3));
   }
   const double q_norm = std::sqrt(dot(q, q));
   for (double& v : q)

@@ -18,9 +18,11 @@ struct StableStep {
   int iterations = 0;
 };
 
-// Lanczos iteration on M^-1/2 K M^-1/2 (converged to 1e-6 in the top Ritz value) and a
-// Gershgorin row-sum bound on the same matrix.
+// Lanczos iteration on M^-1/2 K M^-1/2 restricted to the free DOF (converged to 1e-7 in
+// the top Ritz value) and a Gershgorin row-sum bound on the same matrix. `held` has one
+// DofMask per node (bit d set: DOF d is fixed or imposed) and may be empty (all free).
 StableStep compute_stable_step(const Lattice& lattice, const BarTable& table,
-                               const std::vector<double>& mass);
+                               const std::vector<double>& mass,
+                               const std::vector<unsigned char>& held);
 
 } // namespace ldem
