@@ -1,10 +1,10 @@
 // Shared set-ups for the solver tests.
 #pragma once
 
-#include <cmath>
-
 #include "lattice/node_set.hpp"
 #include "solver/simulation.hpp"
+
+#include <cmath>
 
 namespace ldem::testing {
 

@@ -1,11 +1,11 @@
 // Elastic physics of the lattice and of the integrator.
+#include "helpers.hpp"
+#include "util/error.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <gtest/gtest.h>
 #include <random>
-
-#include "helpers.hpp"
-#include "util/error.hpp"
 
 namespace ldem {
 namespace {
@@ -29,7 +29,8 @@ TEST(Elastic, AffineStrainGivesIsotropicStressInTheInterior) {
   Simulation sim = make_sim(4, 4, 4, L, m);
   const Lattice& lat = sim.lattice();
   // A general symmetric strain, small enough that geometric nonlinearity (O(eps)) is < 1e-5.
-  const double eps[3][3] = {{2e-6, 0.7e-6, -0.4e-6}, {0.7e-6, -1e-6, 0.9e-6}, {-0.4e-6, 0.9e-6, 1.5e-6}};
+  const double eps[3][3] = {
+      {2e-6, 0.7e-6, -0.4e-6}, {0.7e-6, -1e-6, 0.9e-6}, {-0.4e-6, 0.9e-6, 1.5e-6}};
   for (index_t n = 0; n < lat.num_nodes(); ++n) {
     const Vec3 X = lat.position(n);
     sim.set_displacement(n, {eps[0][0] * X.x + eps[0][1] * X.y + eps[0][2] * X.z,
@@ -195,7 +196,8 @@ TEST(Elastic, IntegratorIsTimeReversible) {
   double err = 0.0;
   for (index_t n = 0; n < lat.num_nodes(); ++n) {
     const Vec3 x = sim.displacement(n);
-    err = std::max({err, std::abs(x.x - u0[n].x), std::abs(x.y - u0[n].y), std::abs(x.z - u0[n].z)});
+    err =
+        std::max({err, std::abs(x.x - u0[n].x), std::abs(x.y - u0[n].y), std::abs(x.z - u0[n].z)});
   }
   // Round-off only: amplitudes are 1e-4, double precision 1e-16, 4000 steps.
   EXPECT_LT(err, 1e-12);

@@ -5,9 +5,9 @@ namespace ldem {
 
 struct EnergyReport {
   double time = 0.0;
-  double external_work = 0.0; // imposed forces and reactions of imposed velocities [J]
-  double elastic = 0.0;       // recoverable energy stored in the bars
-  double kinetic = 0.0;
+  double external_work = 0.0;     // imposed forces and reactions of imposed velocities [J]
+  double elastic = 0.0;           // recoverable energy stored in the bars
+  double kinetic = 0.0;           // sum of m v_{n-1/2} . v_{n+1/2} / 2 (central differences)
   double damage_dissipated = 0.0; // sum over bars of the area O-A-P (paper Fig. 1c)
   double damping_dissipated = 0.0;
   double initial = 0.0;       // elastic + kinetic energy at t = 0 (initial velocities)

@@ -58,8 +58,8 @@ struct BilinearLaw {
   //   D = l0 (m EA e_p - e_p F_env(m)) / 2,
   // which for m >= e_r is EA e_p e_r l0 / 2 = Gf A^f by the choice of K_r (eq. 11).
   double dissipated_energy(double h) const noexcept {
-    if (std::isinf(h))
-      return 0.0;
+    if (std::isinf(h) || h <= e_p)
+      return 0.0; // pre-cracked, or never past the peak (exactly 0, not a round-off residue)
     const double m = std::min(h, e_r);
     return 0.5 * l0 * (m * EA * e_p - e_p * envelope(m));
   }

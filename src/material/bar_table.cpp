@@ -44,6 +44,11 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
     require(*spec.e_r > e_p, "e_r", fmt::format("a rupture strain above e_p = {:g}", e_p),
             *spec.e_r);
 
+  if (spec.nu != 0.25)
+    warnings_.push_back(fmt::format(
+        "material.nu = {:g}: the cubic lattice is isotropic only for nu = 0.25; with other values "
+        "it keeps E and nu along the cube axes but its shear modulus differs from E / (2 (1 + nu))",
+        spec.nu));
   const ElasticEquivalence eq = elastic_equivalence(spec.nu);
   const double L = lat.L();
   const double ratio_n = area_ratio(BarKind::Normal), ratio_d = area_ratio(BarKind::Diagonal);
@@ -122,6 +127,20 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
       if (kr < 1.0)
         ++s.bars_below_one;
     }
+  }
+  if (s.bars_below_one > 0 && spec.allow_low_kr) {
+    // A brittle bar: e_r just above e_p (the law needs e_r > e_p), force to zero at the peak.
+    auto brittle = [&](double& er, double ep) { er = std::max(er, ep * (1.0 + 1e-9)); };
+    for (int f = 0; f < kFamilies; ++f)
+      brittle(families_[f].e_r, families_[f].e_p);
+    for (std::size_t b = 0; b < e_r_.size(); ++b)
+      brittle(e_r_[b], e_p_[b]);
+    warnings_.push_back(fmt::format(
+        "material: K_r < 1 in {} bars (smallest {:.4g}), allowed by allow_low_kr: these bars break "
+        "at e_p without softening and dissipate EA e_p^2 l0 / 2, more than Gf A^f (L_cr = {:.4g} "
+        "m, "
+        "L = {:.4g} m)",
+        s.bars_below_one, s.worst_kr, s.L_cr_min, L));
   }
   if (s.bars_below_one > 0 && !spec.allow_low_kr) {
     const Vec3 c = lat.bar_centre(s.worst_bar);

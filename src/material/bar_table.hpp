@@ -70,6 +70,8 @@ public:
   BilinearLaw law(const Lattice& lattice, index_t bar) const;
   double area_ratio(BarKind kind) const; // A^f / A
   const DuctilitySummary& ductility_summary() const { return summary_; }
+  // Things the user should know that do not stop the run (nu != 0.25, allowed K_r < 1).
+  const std::vector<std::string>& warnings() const { return warnings_; }
   double node_mass_density() const { return spec_.rho; }
 
 private:
@@ -77,6 +79,7 @@ private:
   std::array<FamilyMaterial, kFamilies> families_{};
   std::vector<double> k_, e_p_, e_r_;
   DuctilitySummary summary_;
+  std::vector<std::string> warnings_;
 };
 
 } // namespace ldem

@@ -379,7 +379,10 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
         if constexpr (Loads)
           load_mid += dt * (px[i] * mx + py[i] * my + pz[i] * mz);
         if constexpr (Report) {
-          kinetic += 0.5 * m[i] * (mx * mx + my * my + mz * mz);
+          // Central-difference kinetic energy m v_{n-1/2} . v_{n+1/2} / 2: with it the discrete
+          // balance is exact for linear elastic motion (see docs/model.md); (m v_n^2 / 2 would
+          // be off by O((omega dt)^2) for the fast modes a crack excites).
+          kinetic += 0.5 * m[i] * (kx * ox * nx + ky * oy * ny + kz * oz * nz);
           if constexpr (Loads)
             load_half += 0.5 * dt * (kx * px[i] * ox + ky * py[i] * oy + kz * pz[i] * oz);
         }
@@ -464,11 +467,13 @@ void Simulation::apply_velocities(double t, bool report) {
         const double v_free = ((1.0 - half) * vold[d] + dt * fint[d] / mass_[n]) / (1.0 + half);
         const double R = mass_[n] * (target[d] - v_free) * (1.0 + half) / dt;
         const double vmid = 0.5 * (vold[d] + target[d]);
-        work += R * dt * vmid;
+        // The support's reaction R acts together with any load P on the DOF.
+        const double P = px_.empty() ? 0.0 : (d == 0 ? px_[n] : d == 1 ? py_[n] : pz_[n]);
+        work += (R + P) * dt * vmid;
         damping += opt_.damping * dt * mass_[n] * vmid * vmid;
         if (report) {
-          work_half += 0.5 * R * dt * vold[d];
-          kinetic += 0.5 * mass_[n] * vmid * vmid;
+          work_half += 0.5 * (R + P) * dt * vold[d];
+          kinetic += 0.5 * mass_[n] * vold[d] * target[d];
         }
         *v[d] = target[d];
         *w[d] = *u[d] + dt * target[d];

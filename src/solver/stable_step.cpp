@@ -136,8 +136,8 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       }
       for (int p = 0; p < 3; ++p)
         if (free_dof(node, p) > 0.0)
-          bound = std::max(bound, std::abs(diag[p][0]) + std::abs(diag[p][1]) + std::abs(diag[p][2]) +
-                                    off[p]);
+          bound = std::max(bound, std::abs(diag[p][0]) + std::abs(diag[p][1]) +
+                                      std::abs(diag[p][2]) + off[p]);
     }
   }
   out.omega_bound = std::sqrt(bound);

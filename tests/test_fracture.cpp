@@ -1,0 +1,215 @@
+// Fracture energy, energy balance and determinism of damaging runs.
+#include "helpers.hpp"
+#include "lattice/precrack.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <gtest/gtest.h>
+#include <omp.h>
+
+namespace ldem {
+namespace {
+
+using testing::face;
+using testing::make_sim;
+using testing::unit_material;
+
+// Pull the top face (z+) of a box at velocity V (after a ramp of `ramp` time units) with the
+// bottom face (z-) fixed.
+Conditions pull_top(const Lattice& lat, double V, double ramp) {
+  Conditions c;
+  c.fixed.push_back({face(lat, Face::ZMin), kDofAll});
+  c.velocities.push_back(
+      {face(lat, Face::ZMax), kDofAll, {0.0, 0.0, V}, TimeFunction({LinearRamp{1.0, ramp}})});
+  return c;
+}
+
+// Rectangle spanning the whole x-y section of a box at height z (with a margin so that the
+// bars on the faces are included).
+Rectangle section(const Lattice& lat, double z, double x_fraction = 1.0) {
+  const double W = lat.nx() * lat.L(), D = lat.ny() * lat.L(), m = 0.01 * lat.L();
+  return {"section",
+          {-m, -m, z},
+          {x_fraction * W + (x_fraction < 1.0 ? m : 2 * m), 0, 0},
+          {0, D + 2 * m, 0}};
+}
+
+// SPEC 2 / paper eqs. 3-6: a module split in two by a plane parallel to a face dissipates
+// Gf L^2 (4 edges x 1/4 x 3/22 + 1 centre bar x 3/22 + 4 diagonals x 4/22 = 1). A 1 x 1 x 2
+// prism is pulled slowly; the 9 bars that cross z = 1.25 L (the top module's 4 vertical edges,
+// the centre-centre bar, the top module's 4 lower diagonals) form a weak layer with e_p and
+// Gf scaled by 0.3 and 0.09 (so K_r, eq. 12, is unchanged), and the crack forms there alone.
+// A milder contrast would not do: in this lattice the normal bars soften first and the
+// diagonals (strained about a third as much) keep carrying load, so at a 2 % contrast the
+// normal bars of the intact module soften too. Expected: D = Gf_layer L^2 within 2 %.
+TEST(Fracture, SplitModuleDissipatesGfL2) {
+  const MaterialSpec m = unit_material(1e-3, 4.0);
+  const Lattice lat(1, 1, 2, 1.0);
+  const CutResult weak = cut_bars(lat, section(lat, 1.25), false);
+  ASSERT_EQ(weak.bars.size(), 9u);
+  BarFields fields;
+  fields.e_p.assign(lat.num_bars(), *m.e_p);
+  fields.Gf.assign(lat.num_bars(), m.Gf);
+  for (index_t b : weak.bars) {
+    fields.e_p[b] = 0.3 * *m.e_p;
+    fields.Gf[b] = 0.09 * m.Gf;
+  }
+  // V = 2e-6 c: the loading lasts ~3000 L/c, far longer than a wave transit (2 L/c).
+  Simulation sim = make_sim(1, 1, 2, 1.0, m, pull_top(lat, 2e-6, 200.0), {}, {}, fields);
+  while (sim.broken_count() < weak.bars.size() && sim.time() < 2e4)
+    sim.step();
+  for (int s = 0; s < 200; ++s)
+    sim.step();
+  sim.step(true);
+  const double D = sim.last_report().damage_dissipated;
+  EXPECT_NEAR(D / (0.09 * m.Gf), 1.0, 0.02);
+  EXPECT_LT(sim.last_report().balance_error, 0.01);
+  for (index_t b = 0; b < lat.num_bars(); ++b) {
+    const bool is_weak = std::binary_search(weak.bars.begin(), weak.bars.end(), b);
+    EXPECT_EQ(sim.bar_state(b), is_weak ? BarState::Broken : BarState::Intact) << "bar " << b;
+  }
+}
+
+// Mesh objectivity: a prism W x W x W with a notch over three quarters of its section
+// (x < 3W/4) at mid height, pulled slowly (V = 5e-6 c: quasi-static, the result no longer
+// changes with V or damping), must dissipate Gf times the ligament area W^2 / 4 within 10 %
+// (each module a flat crack splits dissipates Gf L^2, eqs. 3-6) for two module sizes, and the
+// two must agree closely. The run ends when the body has lost its load capacity (elastic
+// energy below 1e-3 of its peak): a graph test of separation would wait for pin-jointed chains
+// of unstrained bars that still join the halves. K_r = 10 at L = W/4 and 20 at W/8.
+// Measured: D / (Gf W^2 / 4) = 1.0955 and 1.0999. The excess over the flat crack is the
+// lattice's damage zone: normal bars beside the crack soften without breaking while the
+// diagonals still carry load (docs/model.md, "Diffuse softening"); it is the same at both L.
+double notched_dissipation(index_t n, const MaterialSpec& m) {
+  const double W = 1.0, L = W / n, V = 5e-6;
+  const Lattice lat(n, n, n, L);
+  const CutResult notch = cut_bars(lat, section(lat, 0.5 * W + 0.25 * L, 0.75), false);
+  SolverOptions o;
+  o.damping = 0.02; // a = 0.02 c / W takes the ringing out of the quasi-static pull
+  Simulation sim = make_sim(n, n, n, L, m, pull_top(lat, V, 20.0), o, notch.bars);
+  double u_peak = 0.0;
+  for (int s = 0; sim.time() < 1e4; ++s) {
+    const bool report = s % 200 == 0;
+    sim.step(report);
+    if (!report)
+      continue;
+    const double U = sim.last_report().elastic;
+    u_peak = std::max(u_peak, U);
+    if (sim.time() > 50.0 && U < 1e-3 * u_peak)
+      return sim.last_report().damage_dissipated;
+  }
+  ADD_FAILURE() << "the prism kept its load capacity at n = " << n;
+  return 0.0;
+}
+
+TEST(Fracture, NotchedPrismDissipatesGfTimesLigamentForTwoModuleSizes) {
+  const MaterialSpec m = unit_material(1e-3, 10.0, 0.25);
+  const double ligament = 0.25; // W^2 / 4
+  const double coarse = notched_dissipation(4, m), fine = notched_dissipation(8, m);
+  EXPECT_NEAR(coarse / (m.Gf * ligament), 1.0, 0.10);
+  EXPECT_NEAR(fine / (m.Gf * ligament), 1.0, 0.10);
+  EXPECT_NEAR(fine / coarse, 1.0, 0.02);
+}
+
+// A fast dynamic fracture run: a plate in plane strain with an edge notch, top and bottom
+// pulled apart at 1 % of c. The energy balance (external work + initial energy = elastic +
+// kinetic + damage + damping) must hold within 1 % at every report once loading has begun.
+struct DynamicRun {
+  std::vector<EnergyReport> reports;
+  std::vector<Event> events;
+  std::vector<double> u;
+  std::uint64_t broken = 0, precracked = 0;
+};
+
+DynamicRun dynamic_fracture(int threads, double damping = 0.0) {
+  const int threads_before = omp_get_max_threads();
+  omp_set_num_threads(threads);
+  const index_t n = 24;
+  const MaterialSpec m = unit_material(0.01, 3.0);
+  const Lattice lat(n, 1, n, 1.0);
+  Conditions c;
+  c.plane_strain_axis = 1;
+  c.velocities.push_back(
+      {face(lat, Face::ZMax), kDofZ, {0, 0, 0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
+  c.velocities.push_back(
+      {face(lat, Face::ZMin), kDofZ, {0, 0, -0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
+  const Rectangle notch{"notch", {-0.1, -0.1, 12.25}, {6.1, 0, 0}, {0, 1.2, 0}};
+  const CutResult cut = cut_bars(lat, notch, false);
+  SolverOptions o;
+  o.damping = damping;
+  Simulation sim = make_sim(n, 1, n, 1.0, m, c, o, cut.bars);
+  DynamicRun run;
+  run.precracked = cut.bars.size();
+  for (int s = 0; sim.time() < 150.0; ++s) {
+    sim.step(s % 20 == 0);
+    if (s % 20 == 0)
+      run.reports.push_back(sim.last_report());
+  }
+  run.events = sim.take_events();
+  for (index_t node = 0; node < lat.num_nodes(); ++node) {
+    const Vec3 u = sim.displacement(node);
+    run.u.insert(run.u.end(), {u.x, u.y, u.z});
+  }
+  run.broken = sim.broken_count();
+  omp_set_num_threads(threads_before);
+  return run;
+}
+
+TEST(Fracture, EnergyBalanceHoldsThroughDynamicFracture) {
+  for (double damping : {0.0, 0.05}) {
+    const DynamicRun run = dynamic_fracture(2, damping);
+    ASSERT_GT(run.broken, run.precracked + 20) << "the crack did not run";
+    const EnergyReport& last = run.reports.back();
+    EXPECT_GT(last.damage_dissipated, 0.05 * last.external_work);
+    if (damping > 0) {
+      EXPECT_GT(last.damping_dissipated, 0.0);
+    }
+    double worst = 0.0;
+    for (const EnergyReport& r : run.reports)
+      if (r.external_work > 1e-3 * last.external_work)
+        worst = std::max(worst, r.balance_error);
+    EXPECT_LT(worst, 0.01) << "damping " << damping;
+  }
+}
+
+// Events are complete: every bar that broke during the run logged `broken` once, after or
+// with its `softening` event; pre-cracked bars log nothing.
+TEST(Fracture, EventsAreCompleteAndOrdered) {
+  const DynamicRun run = dynamic_fracture(2);
+  std::vector<std::uint64_t> soft_step(1u << 20, UINT64_MAX);
+  std::uint64_t broken_events = 0;
+  for (const Event& e : run.events) {
+    if (e.state == BarState::Softening) {
+      EXPECT_EQ(soft_step[e.bar], UINT64_MAX) << "bar " << e.bar << " softened twice";
+      soft_step[e.bar] = e.step;
+    } else {
+      ++broken_events;
+      EXPECT_LE(soft_step[e.bar], e.step) << "bar " << e.bar << " broke before softening";
+    }
+  }
+  EXPECT_EQ(broken_events + run.precracked, run.broken);
+}
+
+// Same case, 1 and 2 threads: identical bits.
+TEST(Fracture, OneAndTwoThreadsGiveIdenticalResults) {
+  const DynamicRun a = dynamic_fracture(1, 0.05), b = dynamic_fracture(2, 0.05);
+  ASSERT_EQ(a.u.size(), b.u.size());
+  for (std::size_t i = 0; i < a.u.size(); ++i)
+    ASSERT_EQ(a.u[i], b.u[i]) << "displacement " << i;
+  ASSERT_EQ(a.events.size(), b.events.size());
+  for (std::size_t i = 0; i < a.events.size(); ++i) {
+    EXPECT_EQ(a.events[i].bar, b.events[i].bar);
+    EXPECT_EQ(a.events[i].step, b.events[i].step);
+  }
+  ASSERT_EQ(a.reports.size(), b.reports.size());
+  for (std::size_t i = 0; i < a.reports.size(); ++i) {
+    EXPECT_EQ(a.reports[i].external_work, b.reports[i].external_work);
+    EXPECT_EQ(a.reports[i].elastic, b.reports[i].elastic);
+    EXPECT_EQ(a.reports[i].kinetic, b.reports[i].kinetic);
+    EXPECT_EQ(a.reports[i].damage_dissipated, b.reports[i].damage_dissipated);
+    EXPECT_EQ(a.reports[i].damping_dissipated, b.reports[i].damping_dissipated);
+  }
+}
+
+} // namespace
+} // namespace ldem
