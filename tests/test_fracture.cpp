@@ -1,6 +1,7 @@
 // Fracture energy, energy balance and determinism of damaging runs.
 #include "helpers.hpp"
 #include "lattice/precrack.hpp"
+#include "util/parallel.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -124,7 +125,8 @@ struct DynamicRun {
 DynamicRun dynamic_fracture(int threads, double damping = 0.0) {
   const int threads_before = omp_get_max_threads();
   omp_set_num_threads(threads);
-  const index_t n = 24;
+  // 48 x 1 x 48 modules: 35k bars, above kParallelMinItems, so 2 threads really share the rows.
+  const index_t n = 48;
   const MaterialSpec m = unit_material(0.01, 3.0);
   const Lattice lat(n, 1, n, 1.0);
   Conditions c;
@@ -133,11 +135,12 @@ DynamicRun dynamic_fracture(int threads, double damping = 0.0) {
       {face(lat, Face::ZMax), kDofZ, {0, 0, 0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
   c.velocities.push_back(
       {face(lat, Face::ZMin), kDofZ, {0, 0, -0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
-  const Rectangle notch{"notch", {-0.1, -0.1, 12.25}, {6.1, 0, 0}, {0, 1.2, 0}};
+  const Rectangle notch{"notch", {-0.1, -0.1, 0.5 * n + 0.25}, {0.25 * n + 0.1, 0, 0}, {0, 1.2, 0}};
   const CutResult cut = cut_bars(lat, notch, false);
   SolverOptions o;
   o.damping = damping;
   Simulation sim = make_sim(n, 1, n, 1.0, m, c, o, cut.bars);
+  EXPECT_GT(static_cast<std::int64_t>(lat.num_bars()), kParallelMinItems);
   DynamicRun run;
   run.precracked = cut.bars.size();
   for (int s = 0; sim.time() < 150.0; ++s) {

@@ -24,11 +24,12 @@ Vec3 cross(Vec3 a, Vec3 b) {
 struct Plane {
   Vec3 origin, e1, e2, n; // n unit normal
   double e1e1, e2e2;
-  bool inside(Vec3 p) const { // projection of p onto the plane lies in the rectangle
+  // Whether the projection of p onto the plane lies in the rectangle grown by `margin` (m).
+  bool inside(Vec3 p, double margin = 0.0) const {
     const Vec3 r = sub(p, origin);
     const double u = dot(r, e1) / e1e1, w = dot(r, e2) / e2e2;
-    const double eps = 1e-12;
-    return u >= -eps && u <= 1 + eps && w >= -eps && w <= 1 + eps;
+    const double eu = 1e-12 + margin / std::sqrt(e1e1), ew = 1e-12 + margin / std::sqrt(e2e2);
+    return u >= -eu && u <= 1 + eu && w >= -ew && w <= 1 + ew;
   }
   double distance(Vec3 p) const { return dot(sub(p, origin), n); }
 };
@@ -44,12 +45,14 @@ Plane make_plane(const Rectangle& r, Vec3 origin) {
           dot(r.edge2, r.edge2)};
 }
 
-// First node lying on the rectangle (within 1e-9 L of its plane), or num_nodes.
+// First node lying on the rectangle's plane (within 1e-9 L) no farther than one module from
+// the rectangle, or num_nodes: a rectangle smaller than a module on a node plane separates
+// nothing either.
 index_t node_on_plane(const Lattice& lat, const Plane& p) {
   const double tol = 1e-9 * lat.L();
   for (index_t node = 0; node < lat.num_nodes(); ++node) {
     const Vec3 x = lat.position(node);
-    if (std::abs(p.distance(x)) <= tol && p.inside(x))
+    if (std::abs(p.distance(x)) <= tol && p.inside(x, lat.L()))
       return node;
   }
   return lat.num_nodes();

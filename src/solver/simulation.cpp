@@ -396,7 +396,7 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
 }
 
 template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() {
-#pragma omp parallel num_threads(threads_)
+#pragma omp parallel num_threads(threads_) if (lat_.num_bars() > kParallelMinItems)
   for (const Block& blk : blocks_) {
     bar_rows(blk.bar_begin, blk.bar_end);
     node_rows_range<Damped, Loads, Report>(blk.node_begin, blk.node_end);

@@ -77,7 +77,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
 
   // y = M^-1/2 K M^-1/2 x, gathered per node (x, y interleaved: 3 per node).
   auto apply = [&](const std::vector<double>& x, std::vector<double>& y) {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
     for (std::int64_t r = 0; r < nrows; ++r) {
       RowLink links[kMaxRowLinks];
       const int nl = row_links(lat, rows[r], links);
@@ -164,7 +164,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
     apply(q, w);
     const double a = dot(w, q);
     const double b_prev = beta.back();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
     for (std::int64_t i = 0; i < static_cast<std::int64_t>(w.size()); ++i)
       w[i] -= a * q[i] + b_prev * q_prev[i];
     alpha.push_back(a);
@@ -181,7 +181,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
     if (!(b > 1e-14 * theta))
       break; // invariant subspace found: theta is exact
     beta.push_back(b);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
     for (std::int64_t i = 0; i < static_cast<std::int64_t>(w.size()); ++i) {
       q_prev[i] = q[i];
       q[i] = w[i] / b;
