@@ -5,7 +5,6 @@ PKGS=(
   cmake ninja-build g++            # build
   libcli11-dev libfmt-dev          # command line, formatting
   libgtest-dev libgmock-dev        # tests
-  libbenchmark-dev                 # micro-benchmarks
 )
 missing=()
 for p in "${PKGS[@]}"; do
