@@ -7,6 +7,9 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <omp.h>
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
 
 namespace ldem {
 
@@ -149,28 +152,43 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
         bar_rows_.push_back({f, j, k, inner, lat_.area_factor(fam, 0, j, k)});
       }
     }
+  row_held_.assign(node_rows_.size(), 0);
+  for (std::size_t r = 0; r < node_rows_.size(); ++r)
+    for (index_t i = 0; i < node_rows_[r].length; ++i)
+      row_held_[r] |= held_[node_rows_[r].first + i] != 0;
+  // A row is "damaged" once any of its bars has a history above e_p (or is pre-cracked);
+  // intact rows skip reading the history.
+  row_damaged_.assign(bar_rows_.size(), 0);
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
+    const BarRow& row = bar_rows_[r];
+    const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
+    for (index_t i = 0; i < lat_.family(row.family).ni; ++i) {
+      const index_t b = b0 + i;
+      const double ep = table_.per_bar() ? table_.e_p_bar()[b] : table_.family(row.family).e_p;
+      if (h_[b] != ep)
+        row_damaged_[r] = 1;
+    }
+  }
+  // Row ranges of each k-plane (planes 0..nz; bar rows by their block index k).
+  planes_.assign(lat_.nz() + 1ull, {0, 0, 0, 0});
   {
-    // About 0.5 MB of bar forces per block (measured best on 64^3); the blocking is fixed by the
-    // lattice alone.
-    const double plane_bytes = 14.0 * 8.0 * lat_.nx() * lat_.ny();
-    const index_t per_block = std::max<index_t>(1, static_cast<index_t>(5e5 / plane_bytes));
     std::size_t br = 0, nr = 0;
-    for (index_t k0 = 0; k0 <= lat_.nz(); k0 += per_block) {
-      const index_t k1 = std::min<index_t>(k0 + per_block, lat_.nz() + 1);
-      Block blk{br, br, nr, nr};
-      while (blk.bar_end < bar_rows_.size() && bar_rows_[blk.bar_end].k < k1)
-        ++blk.bar_end;
-      while (blk.node_end < node_rows_.size() && node_rows_[blk.node_end].k < k1)
-        ++blk.node_end;
-      br = blk.bar_end;
-      nr = blk.node_end;
-      blocks_.push_back(blk);
+    for (index_t k = 0; k <= lat_.nz(); ++k) {
+      Plane& p = planes_[k];
+      p.bar_begin = br;
+      while (br < bar_rows_.size() && bar_rows_[br].k == k)
+        ++br;
+      p.bar_end = br;
+      p.node_begin = nr;
+      while (nr < node_rows_.size() && node_rows_[nr].k == k)
+        ++nr;
+      p.node_end = nr;
     }
   }
   threads_ = omp_get_max_threads();
   thread_scratch_.resize(static_cast<std::size_t>(threads_));
   for (auto& sc : thread_scratch_)
-    sc.resize(3 * (lat_.nx() + 1ull));
+    sc.resize(4 * (lat_.nx() + 1ull)); // fx, fy, fz and a fourth row for the ledger sums
   const std::size_t nrows = node_rows_.size();
   row_damping_.assign(nrows, 0.0);
   row_load_mid_.assign(nrows, 0.0);
@@ -215,7 +233,8 @@ struct RowView {
 // The common path of a row: no history change. Returns true if some bar of the row went
 // past its history (softening further or breaking), to be handled by the slow path.
 // `k_row` is E A / l0 times the area factor; per-bar arrays replace it when present.
-template <bool PerBar>
+// `Intact`: every bar of the row still has h = e_p (no history to read).
+template <bool PerBar, bool Intact>
 bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_row, double e_p,
                     double e_r, const double* __restrict k_bar, const double* __restrict ep_bar,
                     const double* __restrict er_bar) {
@@ -228,8 +247,8 @@ bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_ro
     const double dz = d0.z + (r.ubz[i] - r.uaz[i]);
     const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
     const double e = (l - l0) * inv_l0;
-    const double h = r.h[i];
     const double ep = PerBar ? ep_bar[i] : e_p;
+    const double h = Intact ? ep : r.h[i];
     const double er = PerBar ? er_bar[i] : e_r;
     const double k = PerBar ? k_bar[i] : k_row;
     const double m = e > h ? e : h;
@@ -244,6 +263,57 @@ bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_ro
   return past > 0;
 }
 
+// The common case: a row of intact bars with uniform constants, none past e_p. Then
+// s = k (l - l0) / l = k - k l0 / l, and the test e > e_p is l^2 > (l0 (1 + e_p))^2, so the
+// row needs 1 / sqrt(l^2) and nothing else: with AVX-512 it comes from the 14-bit estimate
+// refined by two Newton steps (relative error ~1e-16, the rounding of l itself), which keeps
+// the divider free. Returns true if some bar may be past e_p (the caller then redoes the row
+// with the general kernel).
+#pragma GCC diagnostic push
+// GCC 12's AVX-512 headers trip this warning on _mm512_maskz_loadu_pd (a known false alarm).
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p) {
+  // Slightly below the exact threshold, so that a bar at e_p to within rounding is handed to
+  // the general kernel, whose strain test is the reference.
+  const double lp2 = l0 * l0 * (1.0 + e_p) * (1.0 + e_p) * (1.0 - 1e-12);
+#if defined(__AVX512F__)
+  const __m512d vx = _mm512_set1_pd(d0.x), vy = _mm512_set1_pd(d0.y), vz = _mm512_set1_pd(d0.z);
+  const __m512d vk = _mm512_set1_pd(k), vkl0 = _mm512_set1_pd(k * l0);
+  const __m512d vlp2 = _mm512_set1_pd(lp2), v15 = _mm512_set1_pd(1.5), v05 = _mm512_set1_pd(0.5);
+  __mmask8 past = 0;
+  for (index_t i = 0; i < n; i += 8) {
+    const __mmask8 m = n - i >= 8 ? __mmask8(0xFF) : __mmask8((1u << (n - i)) - 1u);
+    const __m512d dx = _mm512_add_pd(vx, _mm512_sub_pd(_mm512_maskz_loadu_pd(m, r.ubx + i),
+                                                       _mm512_maskz_loadu_pd(m, r.uax + i)));
+    const __m512d dy = _mm512_add_pd(vy, _mm512_sub_pd(_mm512_maskz_loadu_pd(m, r.uby + i),
+                                                       _mm512_maskz_loadu_pd(m, r.uay + i)));
+    const __m512d dz = _mm512_add_pd(vz, _mm512_sub_pd(_mm512_maskz_loadu_pd(m, r.ubz + i),
+                                                       _mm512_maskz_loadu_pd(m, r.uaz + i)));
+    const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
+    const __m512d h = _mm512_mul_pd(v05, l2);
+    __m512d y = _mm512_rsqrt14_pd(l2);
+    y = _mm512_mul_pd(y, _mm512_fnmadd_pd(_mm512_mul_pd(h, y), y, v15));
+    y = _mm512_mul_pd(y, _mm512_fnmadd_pd(_mm512_mul_pd(h, y), y, v15));
+    _mm512_mask_storeu_pd(r.s + i, m, _mm512_fnmadd_pd(vkl0, y, vk));
+    past |= _mm512_mask_cmp_pd_mask(m, l2, vlp2, _CMP_GT_OQ);
+  }
+  return past != 0;
+#else
+  int past = 0;
+#pragma omp simd reduction(+ : past)
+  for (index_t i = 0; i < n; ++i) {
+    const double dx = d0.x + (r.ubx[i] - r.uax[i]);
+    const double dy = d0.y + (r.uby[i] - r.uay[i]);
+    const double dz = d0.z + (r.ubz[i] - r.uaz[i]);
+    const double l2 = dx * dx + dy * dy + dz * dz;
+    r.s[i] = k - k * l0 / std::sqrt(l2);
+    past += l2 > lp2 ? 1 : 0;
+  }
+  return past > 0;
+#endif
+}
+#pragma GCC diagnostic pop
+
 } // namespace
 
 void Simulation::bar_rows(std::size_t begin, std::size_t end) {
@@ -254,7 +324,6 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end) {
   const std::uint64_t step = step_;
   {
     std::vector<Event>& events = thread_events_[static_cast<std::size_t>(omp_get_thread_num())];
-#pragma omp for schedule(static)
     for (std::size_t r = begin; r < end; ++r) {
       const BarRow& row = bar_rows_[r];
       const FamilyInfo& fi = lat_.family(row.family);
@@ -264,12 +333,19 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end) {
       const RowView v{ux_.data() + a0, uy_.data() + a0, uz_.data() + a0, ux_.data() + c0,
                       uy_.data() + c0, uz_.data() + c0, s_.data() + b0,  h_.data() + b0};
       const index_t n = fi.ni;
+      const bool intact = !row_damaged_[r];
       bool past;
       if (per_bar) {
-        past = bar_row_kernel<true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0, epb + b0, erb + b0);
+        past = intact ? bar_row_kernel<true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
+                                                   epb + b0, erb + b0)
+                      : bar_row_kernel<true, false>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
+                                                    epb + b0, erb + b0);
       } else {
-        past = bar_row_kernel<false>(n, v, fi.d0, fi.l0, mat.k * row.factor, mat.e_p, mat.e_r,
-                                     nullptr, nullptr, nullptr);
+        const double k = mat.k * row.factor;
+        past = intact && intact_row_kernel(n, v, fi.d0, fi.l0, k, mat.e_p);
+        if (!intact || past)
+          past = bar_row_kernel<false, false>(n, v, fi.d0, fi.l0, k, mat.e_p, mat.e_r, nullptr,
+                                              nullptr, nullptr);
         if (row.end_factor != row.factor) {
           const double scale = row.end_factor / row.factor;
           v.s[0] *= scale;
@@ -296,13 +372,122 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end) {
         if (h < er && e >= er)
           events.push_back({b0 + i, BarState::Broken, step});
         v.h[i] = e;
+        row_damaged_[r] = 1;
       }
     }
   }
 }
 
+namespace {
+
+// f_i = sum over the 14 links of s_bar * (r0 + u_other - u_i), for i in [ilo, ihi) where
+// every link is present, in link order from zero.
+void gather_fused(const RowLink* links, index_t ilo, index_t ihi, const double* __restrict s,
+                  const double* __restrict ux_all, const double* __restrict uy_all,
+                  const double* __restrict uz_all, const double* __restrict ux,
+                  const double* __restrict uy, const double* __restrict uz, double* __restrict fx,
+                  double* __restrict fy, double* __restrict fz) {
+  const double* sb[kMaxRowLinks];
+  const double *ox[kMaxRowLinks], *oy[kMaxRowLinks], *oz[kMaxRowLinks];
+  double rx[kMaxRowLinks], ry[kMaxRowLinks], rz[kMaxRowLinks];
+  for (int l = 0; l < kMaxRowLinks; ++l) {
+    sb[l] = s + links[l].bar_base;
+    ox[l] = ux_all + links[l].other_base;
+    oy[l] = uy_all + links[l].other_base;
+    oz[l] = uz_all + links[l].other_base;
+    rx[l] = links[l].r0.x;
+    ry[l] = links[l].r0.y;
+    rz[l] = links[l].r0.z;
+  }
+#pragma omp simd
+  for (index_t i = ilo; i < ihi; ++i) {
+    const double x = ux[i], y = uy[i], z = uz[i];
+    double ax = 0.0, ay = 0.0, az = 0.0;
+#pragma GCC unroll 14
+    for (int l = 0; l < kMaxRowLinks; ++l) {
+      const double t = sb[l][i];
+      ax += t * (rx[l] + (ox[l][i] - x));
+      ay += t * (ry[l] + (oy[l][i] - y));
+      az += t * (rz[l] + (oz[l][i] - z));
+    }
+    fx[i] = ax;
+    fy[i] = ay;
+    fz[i] = az;
+  }
+}
+
+} // namespace
+
 // ---------------------------------------------------------------------------------------
 // Node pass: gather, integrate, and the per-row sums the energy balance needs.
+
+namespace {
+
+struct IntegrationConstants {
+  double dt, c1, c2, alpha;
+};
+
+// v_{n+1/2} and u_{n+1} of one row of nodes from the gathered forces, and (with Sums) the
+// row's contributions to the energy ledger. A separate function so that every array is a
+// __restrict parameter: GCC then vectorises the loop.
+template <bool Damped, bool Loads, bool Report, bool Held>
+inline void
+integrate_row(index_t n, const IntegrationConstants& c, const DofMask* __restrict held,
+              const double* __restrict im, const double* __restrict m, double* __restrict fx,
+              double* __restrict fy, double* __restrict fz, double* __restrict fw,
+              const double* __restrict px, const double* __restrict py, const double* __restrict pz,
+              const double* __restrict ux, const double* __restrict uy, const double* __restrict uz,
+              double* __restrict vx, double* __restrict vy, double* __restrict vz,
+              double* __restrict wx, double* __restrict wy, double* __restrict wz, double& damping,
+              double& load_mid, double& load_half, double& kinetic) {
+  const double dt = c.dt, c1 = c.c1, c2 = c.c2, alpha = c.alpha;
+  constexpr bool sums = Damped || Loads || Report;
+  // No reduction clause: with one, GCC 12 does not vectorise the loop. The per-node terms of
+  // the sums go to the scratch rows (fx.. are free once read) and are added afterwards.
+#pragma omp simd
+  for (index_t i = 0; i < n; ++i) {
+    // A row without held DOF does not read the mask: mixing its bytes with doubles would
+    // keep GCC from vectorising the loop.
+    const double kx = Held && (held[i] & kDofX) ? 0.0 : 1.0;
+    const double ky = Held && (held[i] & kDofY) ? 0.0 : 1.0;
+    const double kz = Held && (held[i] & kDofZ) ? 0.0 : 1.0;
+    const double gx = Loads ? fx[i] + px[i] : fx[i];
+    const double gy = Loads ? fy[i] + py[i] : fy[i];
+    const double gz = Loads ? fz[i] + pz[i] : fz[i];
+    const double ox = vx[i], oy = vy[i], oz = vz[i];
+    const double nx = kx * (c1 * ox + c2 * gx * im[i]);
+    const double ny = ky * (c1 * oy + c2 * gy * im[i]);
+    const double nz = kz * (c1 * oz + c2 * gz * im[i]);
+    vx[i] = nx;
+    vy[i] = ny;
+    vz[i] = nz;
+    wx[i] = ux[i] + dt * nx;
+    wy[i] = uy[i] + dt * ny;
+    wz[i] = uz[i] + dt * nz;
+    if constexpr (sums) {
+      // Mid-step velocity v_n = (v_{n-1/2} + v_{n+1/2}) / 2 of the free DOF.
+      const double mx = 0.5 * kx * (ox + nx), my = 0.5 * ky * (oy + ny), mz = 0.5 * kz * (oz + nz);
+      fx[i] = Damped ? alpha * dt * m[i] * (mx * mx + my * my + mz * mz) : 0.0;
+      fy[i] = Loads ? dt * (px[i] * mx + py[i] * my + pz[i] * mz) : 0.0;
+      // Central-difference kinetic energy m v_{n-1/2} . v_{n+1/2} / 2: with it the discrete
+      // balance is exact for linear elastic motion (see docs/model.md); m v_n^2 / 2 would be
+      // off by O((omega dt)^2) for the fast modes a crack excites.
+      fz[i] = Report ? 0.5 * m[i] * (kx * ox * nx + ky * oy * ny + kz * oz * nz) : 0.0;
+      fw[i] =
+          Report && Loads ? 0.5 * dt * (kx * px[i] * ox + ky * py[i] * oy + kz * pz[i] * oz) : 0.0;
+    }
+  }
+  damping = load_mid = load_half = kinetic = 0.0;
+  if constexpr (sums)
+    for (index_t i = 0; i < n; ++i) {
+      damping += fx[i];
+      load_mid += fy[i];
+      kinetic += fz[i];
+      load_half += fw[i];
+    }
+}
+
+} // namespace
 
 template <bool Damped, bool Loads, bool Report>
 void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
@@ -315,17 +500,32 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
     double* __restrict fx = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
     double* __restrict fy = fx + max_len;
     double* __restrict fz = fy + max_len;
-#pragma omp for schedule(static)
+    double* __restrict fw = fz + max_len;
     for (std::size_t r = begin; r < end; ++r) {
       const NodeRow& row = node_rows_[r];
       const index_t n = row.length, n0 = row.first;
       const double* __restrict ux = ux_.data() + n0;
       const double* __restrict uy = uy_.data() + n0;
       const double* __restrict uz = uz_.data() + n0;
-      for (index_t i = 0; i < n; ++i)
-        fx[i] = fy[i] = fz[i] = 0.0;
       RowLink links[kMaxRowLinks];
       const int nl = row_links(lat_, row, links);
+      // Where all 14 links are present (inside the box), one fused pass over the row;
+      // elsewhere (the row's ends, rows on the box's faces) link by link. Both add the
+      // links in the same order, starting from zero.
+      index_t ilo = 0, ihi = 0;
+      if (nl == kMaxRowLinks) {
+        ihi = n;
+        for (int l = 0; l < nl; ++l) {
+          ilo = std::max(ilo, links[l].ilo);
+          ihi = std::min(ihi, links[l].ihi);
+        }
+        ihi = std::max(ilo, ihi);
+        gather_fused(links, ilo, ihi, s_.data(), ux_.data(), uy_.data(), uz_.data(), ux, uy, uz, fx,
+                     fy, fz);
+      }
+      for (const auto& [a, b] : {std::pair{index_t{0}, ilo}, std::pair{ihi, n}})
+        for (index_t i = a; i < b; ++i)
+          fx[i] = fy[i] = fz[i] = 0.0;
       for (int l = 0; l < nl; ++l) {
         const RowLink& L = links[l];
         const double* __restrict s = s_.data() + L.bar_base;
@@ -333,11 +533,14 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
         const double* __restrict oy = uy_.data() + L.other_base;
         const double* __restrict oz = uz_.data() + L.other_base;
         const double r0x = L.r0.x, r0y = L.r0.y, r0z = L.r0.z;
+        for (const auto& [a, b] :
+             {std::pair{L.ilo, std::min(L.ihi, ilo)}, std::pair{std::max(L.ilo, ihi), L.ihi}}) {
 #pragma omp simd
-        for (index_t i = L.ilo; i < L.ihi; ++i) {
-          fx[i] += s[i] * (r0x + (ox[i] - ux[i]));
-          fy[i] += s[i] * (r0y + (oy[i] - uy[i]));
-          fz[i] += s[i] * (r0z + (oz[i] - uz[i]));
+          for (index_t i = a; i < b; ++i) {
+            fx[i] += s[i] * (r0x + (ox[i] - ux[i]));
+            fy[i] += s[i] * (r0y + (oy[i] - uy[i]));
+            fz[i] += s[i] * (r0z + (oz[i] - uz[i]));
+          }
         }
       }
       double* __restrict vx = vx_.data() + n0;
@@ -353,40 +556,15 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
       const double* __restrict py = Loads ? py_.data() + n0 : nullptr;
       const double* __restrict pz = Loads ? pz_.data() + n0 : nullptr;
       double damping = 0.0, load_mid = 0.0, load_half = 0.0, kinetic = 0.0;
-#pragma omp simd reduction(+ : damping, load_mid, load_half, kinetic)
-      for (index_t i = 0; i < n; ++i) {
-        const double kx = (held[i] & kDofX) ? 0.0 : 1.0;
-        const double ky = (held[i] & kDofY) ? 0.0 : 1.0;
-        const double kz = (held[i] & kDofZ) ? 0.0 : 1.0;
-        const double gx = Loads ? fx[i] + px[i] : fx[i];
-        const double gy = Loads ? fy[i] + py[i] : fy[i];
-        const double gz = Loads ? fz[i] + pz[i] : fz[i];
-        const double ox = vx[i], oy = vy[i], oz = vz[i];
-        const double nx = kx * (c1 * ox + c2 * gx * im[i]);
-        const double ny = ky * (c1 * oy + c2 * gy * im[i]);
-        const double nz = kz * (c1 * oz + c2 * gz * im[i]);
-        vx[i] = nx;
-        vy[i] = ny;
-        vz[i] = nz;
-        wx[i] = ux[i] + dt * nx;
-        wy[i] = uy[i] + dt * ny;
-        wz[i] = uz[i] + dt * nz;
-        // Mid-step velocity v_n = (v_{n-1/2} + v_{n+1/2}) / 2 of the free DOF.
-        const double mx = 0.5 * kx * (ox + nx), my = 0.5 * ky * (oy + ny),
-                     mz = 0.5 * kz * (oz + nz);
-        if constexpr (Damped)
-          damping += alpha * dt * m[i] * (mx * mx + my * my + mz * mz);
-        if constexpr (Loads)
-          load_mid += dt * (px[i] * mx + py[i] * my + pz[i] * mz);
-        if constexpr (Report) {
-          // Central-difference kinetic energy m v_{n-1/2} . v_{n+1/2} / 2: with it the discrete
-          // balance is exact for linear elastic motion (see docs/model.md); (m v_n^2 / 2 would
-          // be off by O((omega dt)^2) for the fast modes a crack excites).
-          kinetic += 0.5 * m[i] * (kx * ox * nx + ky * oy * ny + kz * oz * nz);
-          if constexpr (Loads)
-            load_half += 0.5 * dt * (kx * px[i] * ox + ky * py[i] * oy + kz * pz[i] * oz);
-        }
-      }
+      const IntegrationConstants ic{dt, c1, c2, alpha};
+      if (row_held_[r])
+        integrate_row<Damped, Loads, Report, true>(n, ic, held, im, m, fx, fy, fz, fw, px, py, pz,
+                                                   ux, uy, uz, vx, vy, vz, wx, wy, wz, damping,
+                                                   load_mid, load_half, kinetic);
+      else
+        integrate_row<Damped, Loads, Report, false>(n, ic, held, im, m, fx, fy, fz, fw, px, py, pz,
+                                                    ux, uy, uz, vx, vy, vz, wx, wy, wz, damping,
+                                                    load_mid, load_half, kinetic);
       row_damping_[r] = damping;
       row_load_mid_[r] = load_mid;
       row_load_half_[r] = load_half;
@@ -395,11 +573,25 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
   }
 }
 
+// Each thread takes a slab of k-planes and walks it upwards, bars of a plane then its nodes,
+// so the bar forces are still in cache when they are gathered. A node plane needs the bars
+// of its own plane and of the plane below; the plane below a slab belongs to the next
+// thread down, which therefore computes its top bar plane first, before the one barrier.
+// The split into slabs changes which thread does a row, never how the row is computed.
 template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() {
 #pragma omp parallel num_threads(threads_) if (lat_.num_bars() > kParallelMinItems)
-  for (const Block& blk : blocks_) {
-    bar_rows(blk.bar_begin, blk.bar_end);
-    node_rows_range<Damped, Loads, Report>(blk.node_begin, blk.node_end);
+  {
+    const auto nplanes = static_cast<std::int64_t>(planes_.size());
+    const std::int64_t nt = omp_get_num_threads(), t = omp_get_thread_num();
+    const std::int64_t p0 = t * nplanes / nt, p1 = (t + 1) * nplanes / nt;
+    if (p1 > p0)
+      bar_rows(planes_[p1 - 1].bar_begin, planes_[p1 - 1].bar_end);
+#pragma omp barrier
+    for (std::int64_t k = p0; k < p1; ++k) {
+      if (k != p1 - 1)
+        bar_rows(planes_[k].bar_begin, planes_[k].bar_end);
+      node_rows_range<Damped, Loads, Report>(planes_[k].node_begin, planes_[k].node_end);
+    }
   }
 }
 

@@ -140,19 +140,19 @@ private:
   std::uint64_t step_ = 0;
 
   std::vector<NodeRow> node_rows_;
+  std::vector<std::uint8_t> row_held_; // per node row: some DOF is fixed or imposed
   struct BarRow {
     int family;
     index_t j, k;
     double factor, end_factor; // area factors of the row's bars (inner, first/last)
   };
   std::vector<BarRow> bar_rows_;
-  // The step walks the body in blocks of a few k-planes: first the bars of the block's
-  // planes, then its nodes (which need bars of their own plane and the one below), so the
-  // bar forces are still in cache when they are gathered.
-  struct Block {
+  std::vector<std::uint8_t> row_damaged_; // per bar row: some bar has h != e_p
+  // Row ranges of each k-plane: bar rows whose block index is k, node rows of plane k.
+  struct Plane {
     std::size_t bar_begin, bar_end, node_begin, node_end;
   };
-  std::vector<Block> blocks_;
+  std::vector<Plane> planes_;
   int threads_ = 1;
   std::vector<std::vector<double>> thread_scratch_;
 
