@@ -58,6 +58,8 @@ Lattice::Lattice(index_t nx, index_t ny, index_t nz, double L) : nx_(nx), ny_(ny
     if (ni == 0 || nj == 0 || nk == 0)
       fi.ni = fi.nj = fi.nk = 0;
     offset += fi.count();
+    fi.plane_offset = bars_per_plane_;
+    bars_per_plane_ += fi.ni * fi.nj;
   };
   set(Family::EdgeX, nx, ny + 1, nz + 1, corner_at, {1, csy, csz}, {L, 0, 0}, BarKind::Normal);
   set(Family::EdgeY, nx + 1, ny, nz + 1, corner_at, {csy, csy, csz}, {0, L, 0}, BarKind::Normal);
@@ -167,8 +169,13 @@ int row_links(const Lattice& lat, const NodeRow& row, RowLink out[kMaxRowLinks])
     if (ilo >= ihi)
       return;
     const FamilyInfo& fi = lat.family(f);
-    out[n++] = {std::int64_t{lat.bar(f, 0, jb, kb)} + shift_i, other_first, ilo, ihi,
-                first_role ? fi.d0 : neg(fi.d0)};
+    out[n++] = {std::int64_t{lat.bar(f, 0, jb, kb)} + shift_i,
+                other_first,
+                std::int64_t{fi.plane_offset} + std::int64_t{fi.ni} * jb + shift_i,
+                ilo,
+                ihi,
+                first_role ? fi.d0 : neg(fi.d0),
+                static_cast<int>(kb) - static_cast<int>(k)};
   };
   if (!row.centre) {
     const std::int64_t c0 = lat.corner(0, j, k);

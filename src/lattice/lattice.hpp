@@ -56,6 +56,7 @@ struct NodeMap {
 struct FamilyInfo {
   index_t ni = 0, nj = 0, nk = 0; // block of bar indices
   index_t offset = 0;             // global number of the family's first bar
+  index_t plane_offset = 0;       // position of the family's bars within one k-plane
   NodeMap a, b;                   // first and second node of bar (i,j,k)
   Vec3 d0;                        // reference vector X_b - X_a
   double l0 = 0.0;                // reference length
@@ -90,6 +91,9 @@ public:
   index_t num_centres() const { return num_centres_; }
   index_t num_nodes() const { return num_corners_ + num_centres_; }
   index_t num_bars() const { return num_bars_; }
+  // Bars with block index k, over all families, laid out family after family
+  // (FamilyInfo::plane_offset), i fastest: the size of one plane's worth of bar data.
+  index_t bars_per_plane() const { return bars_per_plane_; }
 
   index_t corner(index_t i, index_t j, index_t k) const {
     return i + (nx_ + 1) * (j + (ny_ + 1) * k);
@@ -122,7 +126,7 @@ public:
 private:
   index_t nx_, ny_, nz_;
   double L_;
-  index_t num_corners_ = 0, num_centres_ = 0, num_bars_ = 0;
+  index_t num_corners_ = 0, num_centres_ = 0, num_bars_ = 0, bars_per_plane_ = 0;
   std::array<FamilyInfo, kFamilies> families_{};
 };
 
@@ -144,9 +148,10 @@ namespace ldem {
 // vector from the row's node to that other node is l.r0. The order is fixed (family
 // order, first-node role before second-node role), so a sum over links is deterministic.
 struct RowLink {
-  std::int64_t bar_base, other_base;
+  std::int64_t bar_base, other_base, plane_base;
   index_t ilo, ihi;
   Vec3 r0;
+  int dk;
 };
 inline constexpr int kMaxRowLinks = 14;
 

@@ -120,7 +120,6 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     pz_.assign(nn, 0.0);
   }
 
-  s_.assign(nb, 0.0);
   h_.resize(nb);
   for (int f = 0; f < kFamilies; ++f) {
     const FamilyInfo& fi = lat_.family(f);
@@ -152,6 +151,12 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
         bar_rows_.push_back({f, j, k, inner, lat_.area_factor(fam, 0, j, k)});
       }
     }
+  // The links of every node row, computed once (they cost more to derive than to read).
+  row_links_.resize(kMaxRowLinks * node_rows_.size());
+  row_link_count_.resize(node_rows_.size());
+  for (std::size_t r = 0; r < node_rows_.size(); ++r)
+    row_link_count_[r] =
+        static_cast<std::uint8_t>(row_links(lat_, node_rows_[r], &row_links_[kMaxRowLinks * r]));
   row_held_.assign(node_rows_.size(), 0);
   for (std::size_t r = 0; r < node_rows_.size(); ++r)
     for (index_t i = 0; i < node_rows_[r].length; ++i)
@@ -186,6 +191,9 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     }
   }
   threads_ = omp_get_max_threads();
+  plane_buffers_.resize(3 * static_cast<std::size_t>(threads_));
+  for (auto& b : plane_buffers_)
+    b.assign(lat_.bars_per_plane(), 0.0);
   thread_scratch_.resize(static_cast<std::size_t>(threads_));
   for (auto& sc : thread_scratch_)
     sc.resize(4 * (lat_.nx() + 1ull)); // fx, fy, fz and a fourth row for the ledger sums
@@ -316,7 +324,7 @@ bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k
 
 } // namespace
 
-void Simulation::bar_rows(std::size_t begin, std::size_t end) {
+void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane) {
   const bool per_bar = table_.per_bar();
   const double* kb = per_bar ? table_.k_bar().data() : nullptr;
   const double* epb = per_bar ? table_.e_p_bar().data() : nullptr;
@@ -330,8 +338,14 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end) {
       const FamilyMaterial& mat = table_.family(row.family);
       const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
       const index_t a0 = fi.a.at(0, row.j, row.k), c0 = fi.b.at(0, row.j, row.k);
-      const RowView v{ux_.data() + a0, uy_.data() + a0, uz_.data() + a0, ux_.data() + c0,
-                      uy_.data() + c0, uz_.data() + c0, s_.data() + b0,  h_.data() + b0};
+      const RowView v{ux_.data() + a0,
+                      uy_.data() + a0,
+                      uz_.data() + a0,
+                      ux_.data() + c0,
+                      uy_.data() + c0,
+                      uz_.data() + c0,
+                      s_plane + fi.plane_offset + std::size_t{fi.ni} * row.j,
+                      h_.data() + b0};
       const index_t n = fi.ni;
       const bool intact = !row_damaged_[r];
       bool past;
@@ -382,16 +396,17 @@ namespace {
 
 // f_i = sum over the 14 links of s_bar * (r0 + u_other - u_i), for i in [ilo, ihi) where
 // every link is present, in link order from zero.
-void gather_fused(const RowLink* links, index_t ilo, index_t ihi, const double* __restrict s,
-                  const double* __restrict ux_all, const double* __restrict uy_all,
-                  const double* __restrict uz_all, const double* __restrict ux,
-                  const double* __restrict uy, const double* __restrict uz, double* __restrict fx,
-                  double* __restrict fy, double* __restrict fz) {
+void gather_fused(const RowLink* links, index_t ilo, index_t ihi, const double* s_plane,
+                  const double* s_below, const double* __restrict ux_all,
+                  const double* __restrict uy_all, const double* __restrict uz_all,
+                  const double* __restrict ux, const double* __restrict uy,
+                  const double* __restrict uz, double* __restrict fx, double* __restrict fy,
+                  double* __restrict fz) {
   const double* sb[kMaxRowLinks];
   const double *ox[kMaxRowLinks], *oy[kMaxRowLinks], *oz[kMaxRowLinks];
   double rx[kMaxRowLinks], ry[kMaxRowLinks], rz[kMaxRowLinks];
   for (int l = 0; l < kMaxRowLinks; ++l) {
-    sb[l] = s + links[l].bar_base;
+    sb[l] = (links[l].dk == 0 ? s_plane : s_below) + links[l].plane_base;
     ox[l] = ux_all + links[l].other_base;
     oy[l] = uy_all + links[l].other_base;
     oz[l] = uz_all + links[l].other_base;
@@ -490,7 +505,8 @@ integrate_row(index_t n, const IntegrationConstants& c, const DofMask* __restric
 } // namespace
 
 template <bool Damped, bool Loads, bool Report>
-void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
+void Simulation::node_rows_range(std::size_t begin, std::size_t end, const double* s_plane,
+                                 const double* s_below) {
   const double dt = dt_;
   const double half = 0.5 * opt_.damping * dt;
   const double c1 = (1.0 - half) / (1.0 + half), c2 = dt / (1.0 + half);
@@ -507,8 +523,8 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
       const double* __restrict ux = ux_.data() + n0;
       const double* __restrict uy = uy_.data() + n0;
       const double* __restrict uz = uz_.data() + n0;
-      RowLink links[kMaxRowLinks];
-      const int nl = row_links(lat_, row, links);
+      const RowLink* links = &row_links_[kMaxRowLinks * r];
+      const int nl = row_link_count_[r];
       // Where all 14 links are present (inside the box), one fused pass over the row;
       // elsewhere (the row's ends, rows on the box's faces) link by link. Both add the
       // links in the same order, starting from zero.
@@ -520,15 +536,15 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
           ihi = std::min(ihi, links[l].ihi);
         }
         ihi = std::max(ilo, ihi);
-        gather_fused(links, ilo, ihi, s_.data(), ux_.data(), uy_.data(), uz_.data(), ux, uy, uz, fx,
-                     fy, fz);
+        gather_fused(links, ilo, ihi, s_plane, s_below, ux_.data(), uy_.data(), uz_.data(), ux, uy,
+                     uz, fx, fy, fz);
       }
       for (const auto& [a, b] : {std::pair{index_t{0}, ilo}, std::pair{ihi, n}})
         for (index_t i = a; i < b; ++i)
           fx[i] = fy[i] = fz[i] = 0.0;
       for (int l = 0; l < nl; ++l) {
         const RowLink& L = links[l];
-        const double* __restrict s = s_.data() + L.bar_base;
+        const double* __restrict s = (L.dk == 0 ? s_plane : s_below) + L.plane_base;
         const double* __restrict ox = ux_.data() + L.other_base;
         const double* __restrict oy = uy_.data() + L.other_base;
         const double* __restrict oz = uz_.data() + L.other_base;
@@ -579,24 +595,38 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end) {
 // thread down, which therefore computes its top bar plane first, before the one barrier.
 // The split into slabs changes which thread does a row, never how the row is computed.
 template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() {
+  const auto nplanes = static_cast<std::int64_t>(planes_.size());
 #pragma omp parallel num_threads(threads_) if (lat_.num_bars() > kParallelMinItems)
   {
-    const auto nplanes = static_cast<std::int64_t>(planes_.size());
     const std::int64_t nt = omp_get_num_threads(), t = omp_get_thread_num();
-    const std::int64_t p0 = t * nplanes / nt, p1 = (t + 1) * nplanes / nt;
+    auto first = [&](std::int64_t u) { return u * nplanes / nt; };
+    const std::int64_t p0 = first(t), p1 = first(t + 1);
+    // Plane k's bar forces: the top plane of a slab in that thread's third buffer (the next
+    // thread up reads it), the others alternating in its first two.
+    auto buffer = [&](std::int64_t k) {
+      std::int64_t u = t;
+      while (k < first(u))
+        --u;
+      while (k >= first(u + 1))
+        ++u;
+      const std::size_t slot = k == first(u + 1) - 1 ? 2 : static_cast<std::size_t>(k % 2);
+      return plane_buffers_[3 * static_cast<std::size_t>(u) + slot].data();
+    };
     if (p1 > p0)
-      bar_rows(planes_[p1 - 1].bar_begin, planes_[p1 - 1].bar_end);
+      bar_rows(planes_[p1 - 1].bar_begin, planes_[p1 - 1].bar_end, buffer(p1 - 1));
 #pragma omp barrier
     for (std::int64_t k = p0; k < p1; ++k) {
+      double* s_plane = buffer(k);
       if (k != p1 - 1)
-        bar_rows(planes_[k].bar_begin, planes_[k].bar_end);
-      node_rows_range<Damped, Loads, Report>(planes_[k].node_begin, planes_[k].node_end);
+        bar_rows(planes_[k].bar_begin, planes_[k].bar_end, s_plane);
+      node_rows_range<Damped, Loads, Report>(planes_[k].node_begin, planes_[k].node_end, s_plane,
+                                             k > 0 ? buffer(k - 1) : nullptr);
     }
   }
 }
 
-// Internal force on one node, gathered in the same link order as the node pass.
-Vec3 Simulation::gathered_force(index_t node) const {
+// Force of its bars on one node at u_n, from the bar law and the history.
+Vec3 Simulation::node_force(index_t node) const {
   const NodeAddress a = lat_.node_address(node);
   const NodeRow row{a.centre, a.j, a.k,
                     a.centre ? lat_.centre(0, a.j, a.k) : lat_.corner(0, a.j, a.k),
@@ -608,11 +638,16 @@ Vec3 Simulation::gathered_force(index_t node) const {
     const RowLink& L = links[l];
     if (a.i < L.ilo || a.i >= L.ihi)
       continue;
-    const double s = s_[static_cast<std::size_t>(L.bar_base + a.i)];
+    const auto bar = static_cast<index_t>(L.bar_base + a.i);
     const auto o = static_cast<index_t>(L.other_base + a.i);
-    f.x += s * (L.r0.x + (ux_[o] - ux_[node]));
-    f.y += s * (L.r0.y + (uy_[o] - uy_[node]));
-    f.z += s * (L.r0.z + (uz_[o] - uz_[node]));
+    const double rx = L.r0.x + (ux_[o] - ux_[node]), ry = L.r0.y + (uy_[o] - uy_[node]),
+                 rz = L.r0.z + (uz_[o] - uz_[node]);
+    const double len = std::sqrt(rx * rx + ry * ry + rz * rz);
+    const double l0 = lat_.family(lat_.bar_address(bar).family).l0;
+    const double s = table_.law(lat_, bar).force((len - l0) / l0, h_[bar]) / len;
+    f.x += s * rx;
+    f.y += s * ry;
+    f.z += s * rz;
   }
   return f;
 }
@@ -643,7 +678,7 @@ void Simulation::apply_velocities(double t, bool report) {
     const double target[3] = {s * iv.velocity.x, s * iv.velocity.y, s * iv.velocity.z};
     for (std::size_t q = 0; q < iv.set.nodes.size(); ++q) {
       const index_t n = iv.set.nodes[q];
-      const Vec3 f = gathered_force(n);
+      const Vec3 f = node_force(n);
       const double fint[3] = {f.x + (px_.empty() ? 0.0 : px_[n]),
                               f.y + (py_.empty() ? 0.0 : py_[n]),
                               f.z + (pz_.empty() ? 0.0 : pz_[n])};

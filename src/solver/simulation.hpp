@@ -123,13 +123,17 @@ public:
 
 private:
   template <bool Damped, bool Loads, bool Report> void advance_rows();
-  void bar_rows(std::size_t begin, std::size_t end);
+  // Bars of plane rows [begin, end) into that plane's force buffer `s`.
+  void bar_rows(std::size_t begin, std::size_t end, double* s);
+  // Nodes of plane rows [begin, end), with the bar forces of their plane and the one below.
   template <bool Damped, bool Loads, bool Report>
-  void node_rows_range(std::size_t begin, std::size_t end);
+  void node_rows_range(std::size_t begin, std::size_t end, const double* s_plane,
+                       const double* s_below);
   void apply_loads(double t);
   void apply_velocities(double t, bool report);
   void compute_energies(bool report);
-  Vec3 gathered_force(index_t node) const;
+  // Force of its bars on a node, from the bar law (the step's plane buffers are gone).
+  Vec3 node_force(index_t node) const;
 
   Lattice lat_;
   BarTable table_;
@@ -140,6 +144,8 @@ private:
   std::uint64_t step_ = 0;
 
   std::vector<NodeRow> node_rows_;
+  std::vector<RowLink> row_links_; // kMaxRowLinks per node row
+  std::vector<std::uint8_t> row_link_count_;
   std::vector<std::uint8_t> row_held_; // per node row: some DOF is fixed or imposed
   struct BarRow {
     int family;
@@ -162,8 +168,10 @@ private:
   std::vector<double> mass_, inv_mass_;
   std::vector<DofMask> held_;        // DOF fixed or imposed
   std::vector<double> px_, py_, pz_; // nodal loads at t_n (only with loads)
-  // Bar arrays.
-  std::vector<double> s_, h_; // force over current length, history
+  // Bar arrays: the history, the only per-bar state. The bars' force over current length
+  // s = F / l lives only in per-thread plane buffers during a step (see advance_rows).
+  std::vector<double> h_;
+  std::vector<std::vector<double>> plane_buffers_; // 3 per thread: two alternating, one top
 
   // Per-row partial sums (deterministic reductions) and per-thread scratch.
   std::vector<double> row_damping_, row_load_mid_, row_load_half_, row_kinetic_;
