@@ -849,11 +849,18 @@ std::uint64_t Simulation::softening_count() const {
 }
 
 double Simulation::bytes_per_module() const {
-  const double per_node = 9 * sizeof(double) + 2 * sizeof(double) + sizeof(DofMask) +
-                          (px_.empty() ? 0 : 3 * sizeof(double));
-  const double per_bar = 2 * sizeof(double) + (table_.per_bar() ? 3 * sizeof(double) : 0);
-  return (per_node * lat_.num_nodes() + per_bar * lat_.num_bars()) /
-         static_cast<double>(lat_.num_modules());
+  auto bytes = [](const auto& v) { return static_cast<double>(v.size() * sizeof(v[0])); };
+  double total = 0.0;
+  for (const auto* v : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &vx_, &vy_, &vz_, &mass_, &inv_mass_,
+                        &px_, &py_, &pz_, &h_})
+    total += bytes(*v);
+  total += bytes(held_) + bytes(row_links_) + bytes(row_link_count_) + bytes(row_held_) +
+           bytes(row_damaged_) + bytes(node_rows_) + bytes(bar_rows_);
+  for (const auto& b : plane_buffers_)
+    total += bytes(b);
+  if (table_.per_bar())
+    total += bytes(table_.k_bar()) + bytes(table_.e_p_bar()) + bytes(table_.e_r_bar());
+  return total / static_cast<double>(lat_.num_modules());
 }
 
 } // namespace ldem

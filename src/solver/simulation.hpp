@@ -118,7 +118,7 @@ public:
 
   std::uint64_t broken_count() const;
   std::uint64_t softening_count() const;
-  // Bytes held per module by the arrays the step loop touches.
+  // Bytes per module held by the simulation's arrays (the state and what the step loop reads).
   double bytes_per_module() const;
 
 private:
