@@ -132,25 +132,27 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     h_[b] = BilinearLaw::kPrecracked;
   }
 
-  // Node rows by plane: corner rows of plane k, then centre rows of plane k.
+  // Rows in the order the step visits them: plane by plane (k), and in a plane line by line
+  // (j): the bar rows (f, j, k) of every family, then the corner and centre node rows (j, k).
+  // A node row needs bar rows of its own line and the line below, in its plane and the plane
+  // below, so the bar forces it reads were computed moments before.
   for (const NodeRow& row : node_rows(lat_))
     node_rows_.push_back(row);
-  std::stable_sort(node_rows_.begin(), node_rows_.end(),
-                   [](const NodeRow& a, const NodeRow& b) { return a.k < b.k; });
-  // Bar rows by plane k of their block index, families interleaved.
+  std::stable_sort(node_rows_.begin(), node_rows_.end(), [](const NodeRow& a, const NodeRow& b) {
+    return a.k != b.k ? a.k < b.k : a.j < b.j;
+  });
   for (index_t k = 0; k <= lat_.nz(); ++k)
-    for (int f = 0; f < kFamilies; ++f) {
-      const FamilyInfo& fi = lat_.family(f);
-      if (k >= fi.nk)
-        continue;
-      const auto fam = static_cast<Family>(f);
-      for (index_t j = 0; j < fi.nj; ++j) {
+    for (index_t j = 0; j <= lat_.ny(); ++j)
+      for (int f = 0; f < kFamilies; ++f) {
+        const FamilyInfo& fi = lat_.family(f);
+        if (k >= fi.nk || j >= fi.nj)
+          continue;
+        const auto fam = static_cast<Family>(f);
         // Along a row (i running) an edge bar's area factor changes only at i = 0 and
         // i = ni - 1 (EdgeY, EdgeZ: the x faces); inside it is that of i = 1.
         const double inner = lat_.area_factor(fam, std::min<index_t>(1, fi.ni - 1), j, k);
         bar_rows_.push_back({f, j, k, inner, lat_.area_factor(fam, 0, j, k)});
       }
-    }
   // The links of every node row, computed once (they cost more to derive than to read).
   row_links_.resize(kMaxRowLinks * node_rows_.size());
   row_link_count_.resize(node_rows_.size());
@@ -174,20 +176,25 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
         row_damaged_[r] = 1;
     }
   }
-  // Row ranges of each k-plane (planes 0..nz; bar rows by their block index k).
-  planes_.assign(lat_.nz() + 1ull, {0, 0, 0, 0});
+  // Row ranges of each line (j, k), and the lines of each plane k.
+  planes_.assign(lat_.nz() + 1ull, {0, 0});
   {
     std::size_t br = 0, nr = 0;
     for (index_t k = 0; k <= lat_.nz(); ++k) {
-      Plane& p = planes_[k];
-      p.bar_begin = br;
-      while (br < bar_rows_.size() && bar_rows_[br].k == k)
-        ++br;
-      p.bar_end = br;
-      p.node_begin = nr;
-      while (nr < node_rows_.size() && node_rows_[nr].k == k)
-        ++nr;
-      p.node_end = nr;
+      planes_[k].line_begin = lines_.size();
+      for (index_t j = 0; j <= lat_.ny(); ++j) {
+        Line line{br, br, nr, nr};
+        while (line.bar_end < bar_rows_.size() && bar_rows_[line.bar_end].k == k &&
+               bar_rows_[line.bar_end].j == j)
+          ++line.bar_end;
+        while (line.node_end < node_rows_.size() && node_rows_[line.node_end].k == k &&
+               node_rows_[line.node_end].j == j)
+          ++line.node_end;
+        br = line.bar_end;
+        nr = line.node_end;
+        lines_.push_back(line);
+      }
+      planes_[k].line_end = lines_.size();
     }
   }
   threads_ = omp_get_max_threads();
@@ -612,15 +619,21 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
       const std::size_t slot = k == first(u + 1) - 1 ? 2 : static_cast<std::size_t>(k % 2);
       return plane_buffers_[3 * static_cast<std::size_t>(u) + slot].data();
     };
-    if (p1 > p0)
-      bar_rows(planes_[p1 - 1].bar_begin, planes_[p1 - 1].bar_end, buffer(p1 - 1));
+    if (p1 > p0) {
+      double* top = buffer(p1 - 1);
+      for (std::size_t l = planes_[p1 - 1].line_begin; l < planes_[p1 - 1].line_end; ++l)
+        bar_rows(lines_[l].bar_begin, lines_[l].bar_end, top);
+    }
 #pragma omp barrier
     for (std::int64_t k = p0; k < p1; ++k) {
       double* s_plane = buffer(k);
-      if (k != p1 - 1)
-        bar_rows(planes_[k].bar_begin, planes_[k].bar_end, s_plane);
-      node_rows_range<Damped, Loads, Report>(planes_[k].node_begin, planes_[k].node_end, s_plane,
-                                             k > 0 ? buffer(k - 1) : nullptr);
+      const double* s_below = k > 0 ? buffer(k - 1) : nullptr;
+      for (std::size_t l = planes_[k].line_begin; l < planes_[k].line_end; ++l) {
+        if (k != p1 - 1)
+          bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane);
+        node_rows_range<Damped, Loads, Report>(lines_[l].node_begin, lines_[l].node_end, s_plane,
+                                               s_below);
+      }
     }
   }
 }

@@ -154,10 +154,14 @@ private:
   };
   std::vector<BarRow> bar_rows_;
   std::vector<std::uint8_t> row_damaged_; // per bar row: some bar has h != e_p
-  // Row ranges of each k-plane: bar rows whose block index is k, node rows of plane k.
-  struct Plane {
+  // Row ranges of each line (fixed j, k) and the lines of each k-plane.
+  struct Line {
     std::size_t bar_begin, bar_end, node_begin, node_end;
   };
+  struct Plane {
+    std::size_t line_begin, line_end;
+  };
+  std::vector<Line> lines_;
   std::vector<Plane> planes_;
   int threads_ = 1;
   std::vector<std::vector<double>> thread_scratch_;
