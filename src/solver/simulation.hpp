@@ -1,8 +1,8 @@
 // Explicit central-difference dynamics of the lattice: the time-step loop.
 //
 // State at step n: displacements u_n (reference coordinates are computed from the
-// lattice, so current coordinates are X + u, large displacements included) and the
-// half-step velocities v_{n-1/2}. One step:
+// lattice, so current coordinates are X + u, large displacements included) and u_{n-1},
+// which gives the half-step velocities v_{n-1/2} = (u_n - u_{n-1}) / dt. One step:
 //   1. bar pass   : every bar's strain, force over current length s = F / l, history,
 //                   events (one writer per bar);
 //   2. node pass  : each node gathers its bars in a fixed order (RowLink), then
@@ -102,7 +102,7 @@ public:
   std::vector<Event> take_events();
 
   Vec3 displacement(index_t node) const { return {ux_[node], uy_[node], uz_[node]}; }
-  Vec3 half_step_velocity(index_t node) const { return {vx_[node], vy_[node], vz_[node]}; }
+  Vec3 half_step_velocity(index_t node) const;
   void set_displacement(index_t node, Vec3 u);
   void set_half_step_velocity(index_t node, Vec3 v);
   BarState bar_state(index_t bar) const;
@@ -167,8 +167,9 @@ private:
   std::vector<std::vector<double>> thread_scratch_;
 
   // Node arrays (structure of arrays).
-  std::vector<double> ux_, uy_, uz_, wx_, wy_, wz_; // u_n and the next-step buffer
-  std::vector<double> vx_, vy_, vz_;                // v_{n-1/2}
+  // u_n, and u_{n-1} (overwritten by u_{n+1} during a step, then the two are swapped):
+  // v_{n-1/2} = (u_n - u_{n-1}) / dt, so no velocity array is streamed.
+  std::vector<double> ux_, uy_, uz_, wx_, wy_, wz_;
   std::vector<double> mass_, inv_mass_;
   std::vector<DofMask> held_;        // DOF fixed or imposed
   std::vector<double> px_, py_, pz_; // nodal loads at t_n (only with loads)
