@@ -27,6 +27,20 @@ std::vector<double> bar_stiffness(const Lattice& lat, const BarTable& table) {
   return k;
 }
 
+// Calls f(other node, unit vector towards it, bar stiffness) for every bar of node i of a row.
+template <class F>
+void for_each_bar_of(index_t i, const RowLink* links, int nl, const std::vector<double>& kb,
+                     F&& f) {
+  for (int l = 0; l < nl; ++l) {
+    const RowLink& L = links[l];
+    if (i < L.ilo || i >= L.ihi)
+      continue;
+    const double len = std::sqrt(L.r0.x * L.r0.x + L.r0.y * L.r0.y + L.r0.z * L.r0.z);
+    const double e[3] = {L.r0.x / len, L.r0.y / len, L.r0.z / len};
+    f(static_cast<index_t>(L.other_base + i), e, kb[static_cast<std::size_t>(L.bar_base + i)]);
+  }
+}
+
 // Largest eigenvalue of a symmetric tridiagonal matrix (diagonal a, off-diagonal b[1..m-1])
 // by bisection on Sturm sequence counts.
 double tridiagonal_max_eigenvalue(const std::vector<double>& a, const std::vector<double>& b) {
@@ -84,21 +98,14 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       for (index_t i = 0; i < rows[r].length; ++i) {
         const index_t node = rows[r].first + i;
         double acc[3] = {0, 0, 0};
-        for (int l = 0; l < nl; ++l) {
-          if (i < links[l].ilo || i >= links[l].ihi)
-            continue;
-          const RowLink& L = links[l];
-          const auto other = static_cast<index_t>(L.other_base + i);
-          const double len = std::sqrt(L.r0.x * L.r0.x + L.r0.y * L.r0.y + L.r0.z * L.r0.z);
-          const double e[3] = {L.r0.x / len, L.r0.y / len, L.r0.z / len};
+        for_each_bar_of(i, links, nl, kb, [&](index_t other, const double* e, double k) {
           double proj = 0.0;
           for (int d = 0; d < 3; ++d)
             proj += e[d] * (x[3 * node + d] * rsm[node] * free_dof(node, d) -
                             x[3 * other + d] * rsm[other] * free_dof(other, d));
-          const double t = kb[static_cast<std::size_t>(L.bar_base + i)] * proj;
           for (int d = 0; d < 3; ++d)
-            acc[d] += t * e[d];
-        }
+            acc[d] += k * proj * e[d];
+        });
         for (int d = 0; d < 3; ++d)
           y[3 * node + d] = acc[d] * rsm[node] * free_dof(node, d);
       }
@@ -118,14 +125,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
     for (index_t i = 0; i < row.length; ++i) {
       const index_t node = row.first + i;
       double diag[3][3] = {}, off[3] = {};
-      for (int l = 0; l < nl; ++l) {
-        if (i < links[l].ilo || i >= links[l].ihi)
-          continue;
-        const RowLink& L = links[l];
-        const auto other = static_cast<index_t>(L.other_base + i);
-        const double len = std::sqrt(L.r0.x * L.r0.x + L.r0.y * L.r0.y + L.r0.z * L.r0.z);
-        const double e[3] = {L.r0.x / len, L.r0.y / len, L.r0.z / len};
-        const double k = kb[static_cast<std::size_t>(L.bar_base + i)];
+      for_each_bar_of(i, links, nl, kb, [&](index_t other, const double* e, double k) {
         const double eo = std::abs(e[0]) * free_dof(other, 0) +
                           std::abs(e[1]) * free_dof(other, 1) + std::abs(e[2]) * free_dof(other, 2);
         for (int p = 0; p < 3; ++p) {
@@ -133,7 +133,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
             diag[p][q] += k * e[p] * e[q] / mass[node] * free_dof(node, q);
           off[p] += k * std::abs(e[p]) * eo * rsm[node] * rsm[other];
         }
-      }
+      });
       for (int p = 0; p < 3; ++p)
         if (free_dof(node, p) > 0.0)
           bound = std::max(bound, std::abs(diag[p][0]) + std::abs(diag[p][1]) +
