@@ -4,6 +4,9 @@ set -euo pipefail
 PKGS=(
   cmake ninja-build g++            # build
   libcli11-dev libfmt-dev          # command line, formatting
+  libtomlplusplus-dev              # case files
+  python3-matplotlib python3-numpy # PNG plots of a run
+  python3-vtk9                     # tests: an independent reader of the VTU/PVD output
   libgtest-dev libgmock-dev        # tests
 )
 missing=()

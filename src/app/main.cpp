@@ -1,5 +1,7 @@
 // The ldem command line.
 #include "app/bench.hpp"
+#include "app/case_run.hpp"
+#include "io/case_spec.hpp"
 #include "util/error.hpp"
 
 #include <CLI/CLI.hpp>
@@ -13,10 +15,36 @@ constexpr const char* kVersion = "0.1.0";
 int main(int argc, char** argv) {
   CLI::App app{"ldem: crack propagation in quasi-brittle materials by the Lattice Discrete "
                "Element Method (Riera's cubic truss lattice, explicit dynamics, bilinear "
-               "softening bars, full energy balance)",
+               "softening bars, full energy balance).\n\nA case is a TOML file "
+               "(docs/case-format.md); `ldem run CASE.toml` writes energies, events, probes, "
+               "ParaView files and plots to an output folder.",
                "ldem"};
   app.set_version_flag("--version", std::string("ldem ") + kVersion);
   app.require_subcommand(0, 1);
+
+  std::string case_path;
+  ldem::RunOptions run;
+  auto* cmd_run = app.add_subcommand("run", "Run a case and write its output folder");
+  cmd_run->add_option("case", case_path, "Case file (TOML)")->required();
+  cmd_run->add_option("--out", run.out_dir,
+                      "Output folder (default: results/<case file name without .toml>)");
+  cmd_run->add_option("--threads", run.threads, "OpenMP threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_run->add_flag("--force", run.force, "Write into a non-empty output folder");
+  bool no_plot = false;
+  cmd_run->add_flag("--no-plot", no_plot, "Do not make the PNG plots");
+
+  auto* cmd_check = app.add_subcommand(
+      "check", "Validate a case and print it resolved (node and bar counts, dt and its limit, "
+               "K_r, L_cr) without running it");
+  cmd_check->add_option("case", case_path, "Case file (TOML)")->required();
+
+  std::string plot_dir;
+  auto* cmd_plot = app.add_subcommand("plot", "Make crack.png and energy.png of an output folder");
+  cmd_plot->add_option("dir", plot_dir, "Output folder of a run")->required();
+
+  auto* cmd_format =
+      app.add_subcommand("case-format", "Print the case-file reference (docs/case-format.md)");
 
   ldem::BenchOptions bench;
   std::vector<unsigned> modules{64, 64, 64};
@@ -44,6 +72,24 @@ int main(int argc, char** argv) {
     return 0;
   }
   try {
+    if (cmd_run->parsed()) {
+      if (run.out_dir.empty()) {
+        std::string stem = case_path.substr(case_path.find_last_of('/') + 1);
+        if (stem.size() > 5 && stem.substr(stem.size() - 5) == ".toml")
+          stem.resize(stem.size() - 5);
+        run.out_dir = "results/" + stem;
+      }
+      run.plots = !no_plot;
+      return ldem::run_command(case_path, run);
+    }
+    if (cmd_check->parsed())
+      return ldem::check_command(case_path);
+    if (cmd_plot->parsed())
+      return ldem::plot_command(plot_dir);
+    if (cmd_format->parsed()) {
+      std::cout << ldem::case_format_markdown();
+      return 0;
+    }
     if (cmd_bench->parsed()) {
       bench.nx = modules[0];
       bench.ny = modules[1];

@@ -115,6 +115,12 @@ public:
   void internal_forces(std::vector<double>& fx, std::vector<double>& fy,
                        std::vector<double>& fz) const;
   double stored_energy() const;
+  // Force of its bars on one node at the current state (from the bar law).
+  Vec3 node_force(index_t node) const;
+  // The nodal load at the current step's start on a node (zero without loads).
+  Vec3 nodal_load(index_t node) const {
+    return px_.empty() ? Vec3{} : Vec3{px_[node], py_[node], pz_[node]};
+  }
 
   std::uint64_t broken_count() const;
   std::uint64_t softening_count() const;
@@ -132,8 +138,6 @@ private:
   void apply_loads(double t);
   void apply_velocities(double t, bool report);
   void compute_energies(bool report);
-  // Force of its bars on a node, from the bar law (the step's plane buffers are gone).
-  Vec3 node_force(index_t node) const;
 
   Lattice lat_;
   BarTable table_;

@@ -1,0 +1,483 @@
+#include "app/case_run.hpp"
+
+#include "io/output.hpp"
+#include "util/error.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdlib>
+#include <filesystem>
+#include <fmt/format.h>
+#include <omp.h>
+#include <sstream>
+#include <toml++/toml.h>
+#include <unistd.h>
+
+#ifndef LDEM_PLOT_SCRIPT
+#define LDEM_PLOT_SCRIPT "tools/plot/ldem_plot.py"
+#endif
+
+namespace ldem {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+void on_signal(int) {
+  g_interrupted = true;
+}
+
+std::vector<index_t> select(const Lattice& lat, const NodeSetSpec& s) {
+  switch (s.kind) {
+  case NodeSetSpec::Kind::Face:
+    return select_face(lat, s.face);
+  case NodeSetSpec::Kind::FaceCentres:
+    return select_face_module_centres(lat, s.face);
+  case NodeSetSpec::Kind::Box:
+    return select_box(lat, s.lo, s.hi);
+  case NodeSetSpec::Kind::All:
+    break;
+  }
+  return select_all(lat);
+}
+
+std::string how(const NodeSetSpec& s) {
+  switch (s.kind) {
+  case NodeSetSpec::Kind::Face:
+    return "face " + face_name(s.face);
+  case NodeSetSpec::Kind::FaceCentres:
+    return "centres of the modules along face " + face_name(s.face);
+  case NodeSetSpec::Kind::Box:
+    return fmt::format("box [{:g}, {:g}, {:g}] to [{:g}, {:g}, {:g}]", s.lo.x, s.lo.y, s.lo.z,
+                       s.hi.x, s.hi.y, s.hi.z);
+  case NodeSetSpec::Kind::All:
+    break;
+  }
+  return "all nodes";
+}
+
+const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name) {
+  for (const NodeSet& s : sets)
+    if (s.name == name)
+      return s;
+  throw InputError("node set \"" + name + "\" is not defined");
+}
+
+std::string dofs_text(DofMask m) {
+  std::string s;
+  for (int d = 0; d < 3; ++d)
+    if (m & (1u << d))
+      s += static_cast<char>('x' + d);
+  return s;
+}
+
+} // namespace
+
+BuiltCase build_case(const std::string& path) {
+  BuiltCase c;
+  c.spec = read_case(path);
+  const CaseSpec& s = c.spec;
+  try {
+    Lattice lat(s.nx, s.ny, s.nz, s.L);
+    for (const NodeSetSpec& ns : s.node_sets)
+      c.sets.push_back(make_node_set(ns.name, select(lat, ns), how(ns)));
+    for (const PrecrackSpec& p : s.precracks) {
+      c.cuts.push_back(cut_bars(lat, p.rect, p.nudge));
+      c.precracked.insert(c.precracked.end(), c.cuts.back().bars.begin(), c.cuts.back().bars.end());
+    }
+    std::sort(c.precracked.begin(), c.precracked.end());
+    c.precracked.erase(std::unique(c.precracked.begin(), c.precracked.end()), c.precracked.end());
+    Conditions cond;
+    cond.plane_strain_axis = s.plane_strain_axis;
+    for (const FixedSpec& f : s.fixed)
+      cond.fixed.push_back({set_named(c.sets, f.set), f.dofs});
+    for (const VelocitySpec& v : s.velocities)
+      cond.velocities.push_back({set_named(c.sets, v.set), v.dofs, v.value, v.scale});
+    for (const LoadSpec& l : s.loads)
+      cond.loads.push_back({set_named(c.sets, l.set), l.force, l.scale});
+    for (const ProbeSpec& p : s.probes) {
+      index_t best = 0;
+      if (p.kind == ProbeSpec::Kind::BarForce) {
+        double d_best = INFINITY;
+        for (index_t b = 0; b < lat.num_bars(); ++b) {
+          const Vec3 m = lat.bar_centre(b);
+          const double d = (m.x - p.at.x) * (m.x - p.at.x) + (m.y - p.at.y) * (m.y - p.at.y) +
+                           (m.z - p.at.z) * (m.z - p.at.z);
+          if (d < d_best) {
+            d_best = d;
+            best = b;
+          }
+        }
+      }
+      c.probe_bars.push_back(best);
+    }
+    BarTable table(lat, s.material);
+    c.warnings = table.warnings();
+    SolverOptions opt;
+    opt.step = s.step;
+    opt.damping = s.damping;
+    c.sim = std::make_unique<Simulation>(std::move(lat), std::move(table), std::move(cond), opt,
+                                         c.precracked);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", path, e.what()));
+  }
+  if (!(s.end_time >= c.sim->dt()))
+    throw InputError(fmt::format("{}: time.end: expected at least one time step ({:.4g} s), got "
+                                 "{:g} s",
+                                 path, c.sim->dt(), s.end_time));
+  return c;
+}
+
+std::string resolved_case_toml(const BuiltCase& c) {
+  const CaseSpec& s = c.spec;
+  const Simulation& sim = *c.sim;
+  auto vec = [](Vec3 v) { return toml::array{v.x, v.y, v.z}; };
+  toml::table root;
+  root.insert("case", toml::table{{"title", s.title}});
+  root.insert("lattice",
+              toml::table{{"modules", toml::array{s.nx, s.ny, s.nz}},
+                          {"L", s.L},
+                          {"plane_strain",
+                           s.plane_strain_axis < 0
+                               ? std::string("none")
+                               : std::string(1, static_cast<char>('x' + s.plane_strain_axis))}});
+  toml::table mat{{"law", "bilinear"},
+                  {"E", s.material.E},
+                  {"nu", s.material.nu},
+                  {"rho", s.material.rho},
+                  {"Gf", s.material.Gf},
+                  {"single_ratio", s.material.single_ratio},
+                  {"allow_low_kr", s.material.allow_low_kr}};
+  if (s.material.e_p)
+    mat.insert("e_p", *s.material.e_p);
+  if (s.material.R_f)
+    mat.insert("R_f", *s.material.R_f);
+  if (s.material.e_r)
+    mat.insert("e_r", *s.material.e_r);
+  root.insert("material", mat);
+  toml::array sets;
+  for (std::size_t i = 0; i < s.node_sets.size(); ++i) {
+    const NodeSetSpec& n = s.node_sets[i];
+    toml::table t{{"name", n.name}};
+    if (n.kind == NodeSetSpec::Kind::Face)
+      t.insert("face", face_name(n.face));
+    else if (n.kind == NodeSetSpec::Kind::FaceCentres)
+      t.insert("face_centres", face_name(n.face));
+    else if (n.kind == NodeSetSpec::Kind::Box) {
+      t.insert("box_min", vec(n.lo));
+      t.insert("box_max", vec(n.hi));
+    } else
+      t.insert("all", true);
+    t.insert("nodes_selected", static_cast<std::int64_t>(c.sets[i].nodes.size()));
+    sets.push_back(t);
+  }
+  if (!sets.empty())
+    root.insert("node_set", sets);
+  toml::array fixed, vel, loads, cracks, probes;
+  for (const FixedSpec& f : s.fixed)
+    fixed.push_back(toml::table{{"set", f.set}, {"dofs", dofs_text(f.dofs)}});
+  for (const VelocitySpec& v : s.velocities)
+    vel.push_back(
+        toml::table{{"set", v.set}, {"dofs", dofs_text(v.dofs)}, {"value", vec(v.value)}});
+  for (const LoadSpec& l : s.loads)
+    loads.push_back(toml::table{{"name", l.name}, {"set", l.set}, {"force", vec(l.force)}});
+  for (std::size_t i = 0; i < s.precracks.size(); ++i) {
+    const PrecrackSpec& p = s.precracks[i];
+    cracks.push_back(toml::table{{"name", p.rect.name},
+                                 {"origin", vec(c.cuts[i].origin)},
+                                 {"edge1", vec(p.rect.edge1)},
+                                 {"edge2", vec(p.rect.edge2)},
+                                 {"nudge", p.nudge},
+                                 {"nudged", c.cuts[i].nudged},
+                                 {"bars_cut", static_cast<std::int64_t>(c.cuts[i].bars.size())}});
+  }
+  for (std::size_t i = 0; i < s.probes.size(); ++i) {
+    const ProbeSpec& p = s.probes[i];
+    toml::table t{{"name", p.name}};
+    if (p.kind == ProbeSpec::Kind::BarForce) {
+      t.insert("kind", "bar_force");
+      t.insert("at", vec(p.at));
+      t.insert("bar", static_cast<std::int64_t>(c.probe_bars[i]));
+    } else if (p.kind == ProbeSpec::Kind::Reaction) {
+      t.insert("kind", "reaction");
+      t.insert("set", p.set);
+      t.insert("component", std::string(1, static_cast<char>('x' + p.component)));
+    } else {
+      t.insert("kind", "load");
+      t.insert("load", p.load);
+    }
+    probes.push_back(t);
+  }
+  if (!fixed.empty())
+    root.insert("fixed", fixed);
+  if (!vel.empty())
+    root.insert("velocity", vel);
+  if (!loads.empty())
+    root.insert("load", loads);
+  if (!cracks.empty())
+    root.insert("precrack", cracks);
+  const char* rule = s.step.rule == TimeStep::Rule::Given   ? "dt"
+                     : s.step.rule == TimeStep::Rule::Paper ? "paper"
+                                                            : "safety";
+  root.insert("time", toml::table{{"end", s.end_time},
+                                  {"rule", rule},
+                                  {"safety", s.step.safety},
+                                  {"dt", sim.dt()},
+                                  {"damping", s.damping}});
+  root.insert("output",
+              toml::table{{"energy_every", static_cast<std::int64_t>(s.output.energy_every)},
+                          {"vtu_every", static_cast<std::int64_t>(s.output.vtu_every)},
+                          {"vtu", s.output.vtu},
+                          {"plots", s.output.plots}});
+  if (!probes.empty())
+    root.insert("probe", probes);
+  const DuctilitySummary& k = sim.table().ductility_summary();
+  const double c_bar = std::sqrt(s.material.E / s.material.rho);
+  root.insert("resolved",
+              toml::table{{"nodes", static_cast<std::int64_t>(sim.lattice().num_nodes())},
+                          {"bars", static_cast<std::int64_t>(sim.lattice().num_bars())},
+                          {"steps", static_cast<std::int64_t>(std::ceil(s.end_time / sim.dt()))},
+                          {"dt", sim.dt()},
+                          {"dt_over_L_c", sim.dt() * c_bar / s.L},
+                          {"dt_stable", sim.stable_step().dt},
+                          {"dt_stable_over_L_c", sim.stable_step().dt * c_bar / s.L},
+                          {"dt_proven_bound", sim.stable_step().dt_bound},
+                          {"e_p", sim.table().family(0).e_p},
+                          {"K_r_normal_min", k.kr_min_normal},
+                          {"K_r_normal_max", k.kr_max_normal},
+                          {"K_r_diagonal_min", k.kr_min_diag},
+                          {"K_r_diagonal_max", k.kr_max_diag},
+                          {"L_cr", k.L_cr_min},
+                          {"precracked_bars", static_cast<std::int64_t>(c.precracked.size())},
+                          {"bytes_per_module", sim.bytes_per_module()}});
+  std::ostringstream os;
+  os << "# The case as run: every default and derived value ([resolved]).\n" << root << "\n";
+  return os.str();
+}
+
+int check_command(const std::string& path) {
+  const BuiltCase c = build_case(path);
+  for (const std::string& w : c.warnings)
+    fmt::print(stderr, "ldem: warning: {}\n", w);
+  fmt::print("{}", resolved_case_toml(c));
+  fmt::print(stderr, "{}: valid ({} nodes, {} bars, dt = {:.4g} s of a stable {:.4g} s)\n", path,
+             c.sim->lattice().num_nodes(), c.sim->lattice().num_bars(), c.sim->dt(),
+             c.sim->stable_step().dt);
+  return 0;
+}
+
+namespace {
+
+// Checks the output folder before anything is written: it must be creatable or empty (or
+// `force`), and writable.
+void prepare_output(const std::string& dir, bool force) {
+  std::error_code ec;
+  if (fs::exists(dir, ec)) {
+    if (!fs::is_directory(dir, ec))
+      throw InputError(fmt::format("--out {}: expected a folder, got a file", dir));
+    if (!fs::is_empty(dir, ec) && !force)
+      throw InputError(fmt::format("--out {}: the folder is not empty; choose another or pass "
+                                   "--force to overwrite its results",
+                                   dir));
+    if (access(dir.c_str(), W_OK) != 0)
+      throw InputError(fmt::format("--out {}: the folder is not writable", dir));
+    return;
+  }
+  fs::path parent = fs::absolute(dir, ec).parent_path();
+  while (!parent.empty() && !fs::exists(parent, ec))
+    parent = parent.parent_path();
+  if (parent.empty() || access(parent.c_str(), W_OK) != 0)
+    throw InputError(fmt::format("--out {}: cannot create the folder ({} is not writable)", dir,
+                                 parent.string()));
+}
+
+class Progress {
+public:
+  Progress(std::uint64_t total) : total_(total), tty_(isatty(fileno(stderr))) {
+    start_ = last_ = std::chrono::steady_clock::now();
+  }
+  void update(std::uint64_t step, double t, std::uint64_t broken, double balance, bool last) {
+    const auto now = std::chrono::steady_clock::now();
+    const double since = std::chrono::duration<double>(now - last_).count();
+    const double frac =
+        static_cast<double>(step) / static_cast<double>(std::max<std::uint64_t>(total_, 1));
+    if (!last && since < (tty_ ? 0.2 : 10.0))
+      return;
+    last_ = now;
+    const double el = std::chrono::duration<double>(now - start_).count();
+    const double eta = frac > 0 ? el * (1 - frac) / frac : 0;
+    const int w = 30, fill = static_cast<int>(frac * w);
+    const std::string line = fmt::format(
+        "step {}/{}  t = {:.4g} s  broken {}  balance {:.1e}  elapsed {:.0f} s  ETA {:.0f} s", step,
+        total_, t, broken, balance, el, eta);
+    if (tty_)
+      fmt::print(stderr, "\r[{}{}] {:3.0f}%  {}\x1b[K{}", std::string(fill, '#'),
+                 std::string(w - fill, '.'), 100 * frac, line, last ? "\n" : "");
+    else
+      fmt::print(stderr, "ldem: {:3.0f}%  {}\n", 100 * frac, line);
+  }
+
+private:
+  std::uint64_t total_;
+  bool tty_;
+  std::chrono::steady_clock::time_point start_, last_;
+};
+
+} // namespace
+
+int run_command(const std::string& path, const RunOptions& o) {
+  if (o.threads > 0)
+    omp_set_num_threads(o.threads);
+  BuiltCase c = build_case(path);
+  prepare_output(o.out_dir, o.force);
+  for (const std::string& w : c.warnings)
+    fmt::print(stderr, "ldem: warning: {}\n", w);
+  const CaseSpec& s = c.spec;
+  Simulation& sim = *c.sim;
+  const Lattice& lat = sim.lattice();
+  fs::create_directories(o.out_dir);
+  for (const auto& e : fs::directory_iterator(o.out_dir)) // --force: old snapshots go
+    if (e.path().extension() == ".vtu" && e.path().filename().string().rfind("lattice_", 0) == 0)
+      fs::remove(e.path());
+  const std::string dir = o.out_dir + "/";
+  write_file(dir + "case.resolved.toml", resolved_case_toml(c));
+
+  const auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / sim.dt() - 1e-9));
+  const std::uint64_t every =
+      s.output.energy_every ? s.output.energy_every : std::max<std::uint64_t>(1, steps / 500);
+  const std::uint64_t vtu_every =
+      s.output.vtu_every ? s.output.vtu_every : std::max<std::uint64_t>(1, steps / 20);
+
+  OutputFile energy(dir + "energy.csv"), events(dir + "events.csv"), probes(dir + "probes.csv");
+  energy.write("time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,"
+               "balance_error\n");
+  events.write("bar,event,time,x,y,z\n");
+  std::string head = "time";
+  for (const ProbeSpec& p : s.probes)
+    head += "," + p.name;
+  probes.write(head + "\n");
+  std::vector<std::pair<double, std::string>> snapshots;
+  std::uint64_t n_soft = 0, n_broken = 0;
+  auto flush_events = [&] {
+    std::string rows;
+    for (const Event& e : sim.take_events()) {
+      const Vec3 m = lat.bar_centre(e.bar);
+      (e.state == BarState::Softening ? n_soft : n_broken)++;
+      rows += fmt::format("{},{},{:.9g},{:.9g},{:.9g},{:.9g}\n", e.bar,
+                          e.state == BarState::Softening ? "softening" : "broken",
+                          static_cast<double>(e.step) * sim.dt(), m.x, m.y, m.z);
+    }
+    events.write(rows);
+  };
+  auto probe_row = [&]() {
+    std::string row = fmt::format("{:.9g}", sim.time());
+    for (std::size_t i = 0; i < s.probes.size(); ++i) {
+      const ProbeSpec& p = s.probes[i];
+      double v = 0.0;
+      if (p.kind == ProbeSpec::Kind::BarForce) {
+        v = sim.bar_force(c.probe_bars[i]);
+      } else if (p.kind == ProbeSpec::Kind::Reaction) {
+        // The support force that holds the set: minus the bar forces and loads on its nodes.
+        for (index_t n : set_named(c.sets, p.set).nodes) {
+          const Vec3 f = sim.node_force(n), l = sim.nodal_load(n);
+          v -= p.component == 0 ? f.x + l.x : p.component == 1 ? f.y + l.y : f.z + l.z;
+        }
+      } else {
+        for (const LoadSpec& l : s.loads)
+          if (l.name == p.load)
+            v = l.scale(sim.time()) *
+                std::sqrt(l.force.x * l.force.x + l.force.y * l.force.y + l.force.z * l.force.z) *
+                static_cast<double>(set_named(c.sets, l.set).nodes.size());
+      }
+      row += fmt::format(",{:.9g}", v);
+    }
+    probes.write(row + "\n");
+  };
+
+  g_interrupted = false;
+  auto old_int = std::signal(SIGINT, on_signal);
+  auto old_term = std::signal(SIGTERM, on_signal);
+  Progress progress(steps);
+  double max_balance = 0.0;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::uint64_t done = 0;
+  for (std::uint64_t n = 0; n <= steps; ++n) {
+    const bool report = n % every == 0 || n == steps || g_interrupted;
+    if (s.output.vtu && (n % vtu_every == 0 || n == steps)) {
+      const std::string name = fmt::format("lattice_{:06d}.vtu", snapshots.size());
+      write_file(dir + name, lattice_vtu(sim));
+      snapshots.emplace_back(sim.time(), name);
+      write_file(dir + "lattice.pvd", lattice_pvd(snapshots));
+    }
+    if (report)
+      probe_row();
+    sim.step(report);
+    done = n;
+    if (report) {
+      const EnergyReport& r = sim.last_report();
+      energy.write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g}\n", r.time,
+                               r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
+                               r.damping_dissipated, r.balance_error));
+      if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
+          n > 0)
+        max_balance = std::max(max_balance, r.balance_error);
+      flush_events();
+      energy.flush();
+      events.flush();
+      probes.flush();
+      progress.update(n, r.time, n_broken + c.precracked.size(), r.balance_error, n == steps);
+    }
+    if (g_interrupted)
+      break;
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::signal(SIGINT, old_int);
+  std::signal(SIGTERM, old_term);
+  energy.commit();
+  events.commit();
+  probes.commit();
+  const std::uint64_t softened = sim.softening_count(), broken = sim.broken_count();
+  write_file(
+      dir + "summary.json",
+      fmt::format("{{\n  \"case\": \"{}\",\n  \"title\": \"{}\",\n  \"nodes\": {},\n"
+                  "  \"bars\": {},\n  \"steps\": {},\n  \"dt\": {:.9g},\n"
+                  "  \"dt_stable\": {:.9g},\n  \"end_time\": {:.9g},\n  \"wall_s\": {:.4f},\n"
+                  "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n"
+                  "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
+                  "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
+                  "  \"interrupted\": {},\n  \"analysis\": {{}}\n}}\n",
+                  path, s.title, lat.num_nodes(), lat.num_bars(), done + 1, sim.dt(),
+                  sim.stable_step().dt, sim.time(), wall,
+                  static_cast<double>(lat.num_bars()) * static_cast<double>(done + 1) / wall,
+                  omp_get_max_threads(), max_balance, softened, broken, c.precracked.size(),
+                  g_interrupted ? "true" : "false"));
+  if (g_interrupted) {
+    fmt::print(stderr,
+               "ldem: interrupted at t = {:.4g} s; the outputs in {} are complete up "
+               "to then\n",
+               sim.time(), o.out_dir);
+    return 130;
+  }
+  if (o.plots && s.output.plots)
+    plot_command(o.out_dir);
+  fmt::print(stderr, "ldem: done: {} steps in {:.1f} s, results in {}\n", done + 1, wall,
+             o.out_dir);
+  return 0;
+}
+
+int plot_command(const std::string& dir) {
+  const std::string cmd = fmt::format("/usr/bin/python3 '{}' '{}'", LDEM_PLOT_SCRIPT, dir);
+  const int rc = std::system(cmd.c_str());
+  if (rc != 0) {
+    fmt::print(stderr, "ldem: warning: plotting failed (needs /usr/bin/python3 with matplotlib: "
+                       "apt-get install python3-matplotlib); the data files are complete\n");
+    return 1;
+  }
+  return 0;
+}
+
+} // namespace ldem

@@ -1,0 +1,41 @@
+// `ldem check`, `ldem run` and `ldem plot`: from a case file to an output folder.
+#pragma once
+
+#include "io/case_spec.hpp"
+#include "solver/simulation.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace ldem {
+
+// A case turned into a ready Simulation, with what the outputs need to know about it.
+struct BuiltCase {
+  CaseSpec spec;
+  std::unique_ptr<Simulation> sim;
+  std::vector<NodeSet> sets;
+  std::vector<index_t> precracked;
+  std::vector<CutResult> cuts;
+  std::vector<index_t> probe_bars; // per probe: the bar of a bar_force probe
+  std::vector<std::string> warnings;
+};
+
+// Builds everything a run needs; bad input throws InputError naming the case file.
+BuiltCase build_case(const std::string& path);
+
+struct RunOptions {
+  std::string out_dir;
+  int threads = 0;
+  bool force = false;
+  bool plots = true;
+};
+
+int check_command(const std::string& path);
+int run_command(const std::string& path, const RunOptions& options);
+int plot_command(const std::string& dir);
+
+// The resolved case (every default and derived value), as TOML.
+std::string resolved_case_toml(const BuiltCase& c);
+
+} // namespace ldem

@@ -1,0 +1,134 @@
+// The declaration of every case-file key, and the case-format documentation made from it.
+#include "io/case_spec.hpp"
+
+#include <cmath>
+#include <fmt/format.h>
+#include <limits>
+
+namespace ldem {
+
+namespace {
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kIdxMax = 4294967295.0;
+} // namespace
+
+std::string KeyDecl::range_text() const {
+  if (*choices)
+    return fmt::format("one of {}", choices);
+  const bool has_lo = lo > -kInf, has_hi = hi < kInf;
+  if (!has_lo && !has_hi)
+    return "";
+  if (has_lo && has_hi)
+    return fmt::format("{}{:g}, {:g}{}", lo_open ? "(" : "[", lo, hi, hi_open ? ")" : "]");
+  if (has_lo)
+    return fmt::format("{} {:g}", lo_open ? ">" : ">=", lo);
+  return fmt::format("{} {:g}", hi_open ? "<" : "<=", hi);
+}
+
+// clang-format off
+const std::vector<KeyDecl>& case_keys() {
+  static const std::vector<KeyDecl> keys = {
+    // table, key, type, default, unit, lo, hi, lo open, hi open, choices, help
+    {"case", "title", "string", "\"\"", "", -kInf, kInf, false, false, "", "A line that describes the case; copied to the outputs."},
+
+    {"lattice", "modules", "[3 integers]", "required", "", 1, kIdxMax, false, false, "", "Modules along x, y and z (nx, ny, nz)."},
+    {"lattice", "L", "float", "required", "m", 0, kInf, true, false, "", "Module edge."},
+    {"lattice", "plane_strain", "string", "\"none\"", "", -kInf, kInf, false, false, "\"none\", \"x\", \"y\", \"z\"", "Hold this displacement component at every node (plates one module thick)."},
+
+    {"material", "law", "string", "\"bilinear\"", "", -kInf, kInf, false, false, "\"bilinear\"", "Bar law (paper eqs. 7-17)."},
+    {"material", "E", "float", "required", "Pa", 0, kInf, true, false, "", "Young's modulus."},
+    {"material", "nu", "float", "0.25", "", 0, 0.5, true, true, "", "Poisson's ratio; the lattice is isotropic only at 0.25 (other values give a warning)."},
+    {"material", "rho", "float", "required", "kg/m^3", 0, kInf, true, false, "", "Density."},
+    {"material", "Gf", "float", "required", "N/m", 0, kInf, true, false, "", "Specific fracture energy."},
+    {"material", "e_p", "float", "-", "", 0, kInf, true, false, "", "Strain at peak force; give this or R_f."},
+    {"material", "R_f", "float", "-", "", 0, kInf, true, false, "", "Failure factor: e_p = R_f sqrt(Gf / (E (1 - nu^2))) (eq. 7)."},
+    {"material", "e_r", "float", "-", "", 0, kInf, true, false, "", "Strain at rupture of the normal bars; default K_r e_p with K_r from eq. 12."},
+    {"material", "single_ratio", "bool", "false", "", -kInf, kInf, false, false, "", "Use the paper's single A^f/A = 0.34 for both bar kinds (eq. 16)."},
+    {"material", "allow_low_kr", "bool", "false", "", -kInf, kInf, false, false, "", "Run even where K_r < 1 (such bars break at e_p, brittle)."},
+
+    {"node_set", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name used by conditions, loads and probes."},
+    {"node_set", "face", "string", "-", "", -kInf, kInf, false, false, "\"x-\", \"x+\", \"y-\", \"y+\", \"z-\", \"z+\"", "The corner nodes on this face of the box."},
+    {"node_set", "face_centres", "string", "-", "", -kInf, kInf, false, false, "\"x-\", \"x+\", \"y-\", \"y+\", \"z-\", \"z+\"", "The centre nodes of the layer of modules along this face."},
+    {"node_set", "box_min", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "With box_max: every node inside this box (faces included)."},
+    {"node_set", "box_max", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "See box_min."},
+    {"node_set", "all", "bool", "false", "", -kInf, kInf, false, false, "", "Every node."},
+
+    {"fixed", "set", "string", "required", "", -kInf, kInf, false, false, "", "Node set whose DOF are held at zero displacement."},
+    {"fixed", "dofs", "string", "\"xyz\"", "", -kInf, kInf, false, false, "letters x, y, z", "Which DOF."},
+
+    {"velocity", "set", "string", "required", "", -kInf, kInf, false, false, "", "Node set driven at an imposed velocity."},
+    {"velocity", "dofs", "string", "\"xyz\"", "", -kInf, kInf, false, false, "letters x, y, z", "Which DOF are imposed (the others stay free)."},
+    {"velocity", "value", "[3 floats]", "required", "m/s", -kInf, kInf, false, false, "", "Velocity, scaled by the time function."},
+    {"velocity", "ramp", "float", "-", "s", 0, kInf, true, false, "", "Shortcut for function = [{type = \"ramp\", value = 1, duration = ramp}]."},
+
+    {"load", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name (for probes)."},
+    {"load", "set", "string", "required", "", -kInf, kInf, false, false, "", "Node set loaded."},
+    {"load", "force", "[3 floats]", "required", "N", -kInf, kInf, false, false, "", "Force on each node of the set, scaled by the time function."},
+
+    {"function", "type", "string", "required", "", -kInf, kInf, false, false, "\"constant\", \"ramp\", \"exp_rise\", \"growing_sine\"", "One term of the time function of a velocity or load (`function = [{...}, ...]`, summed); without `function` the factor is 1."},
+    {"function", "value", "float", "1", "", -kInf, kInf, false, false, "", "constant: value; ramp: value * min(t / duration, 1); exp_rise: value * (1 - exp(-t / tau))."},
+    {"function", "duration", "float", "-", "s", 0, kInf, true, false, "", "ramp: time to reach the value."},
+    {"function", "tau", "float", "-", "s", 0, kInf, true, false, "", "exp_rise, growing_sine: time constant."},
+    {"function", "amplitude", "float", "-", "", -kInf, kInf, false, false, "", "growing_sine: final amplitude."},
+    {"function", "frequency", "float", "-", "Hz", 0, kInf, true, false, "", "growing_sine: frequency."},
+    {"function", "t_start", "float", "0", "s", 0, kInf, false, false, "", "growing_sine: start time."},
+    {"function", "n_cycles", "float", "0", "", 0, kInf, false, false, "", "growing_sine: cycles after which the amplitude stays constant."},
+
+    {"precrack", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name, for messages."},
+    {"precrack", "origin", "[3 floats]", "required", "m", -kInf, kInf, false, false, "", "A corner of the rectangle."},
+    {"precrack", "edge1", "[3 floats]", "required", "m", -kInf, kInf, false, false, "", "First edge vector from the origin."},
+    {"precrack", "edge2", "[3 floats]", "required", "m", -kInf, kInf, false, false, "", "Second edge vector from the origin."},
+    {"precrack", "nudge", "bool", "false", "", -kInf, kInf, false, false, "", "Move a rectangle lying on a plane of nodes by L/4 along its normal instead of refusing it."},
+
+    {"time", "end", "float", "required", "s", 0, kInf, true, false, "", "Simulated time."},
+    {"time", "rule", "string", "\"safety\"", "", -kInf, kInf, false, false, "\"safety\", \"dt\", \"paper\"", "Time step: a fraction of the stable step, a given dt, or the paper's 0.6 L / sqrt(E / rho); a step above the stable limit is refused."},
+    {"time", "safety", "float", "0.9", "", 0, 1, true, false, "", "Fraction of the stable step (rule = \"safety\")."},
+    {"time", "dt", "float", "-", "s", 0, kInf, true, false, "", "Time step (rule = \"dt\")."},
+    {"time", "damping", "float", "0", "1/s", 0, kInf, false, false, "", "Mass-proportional damping coefficient a (C = a M)."},
+
+    {"output", "energy_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between rows of energy.csv and probes.csv; 0: about 500 rows."},
+    {"output", "vtu_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between lattice snapshots; 0: about 20."},
+    {"output", "vtu", "bool", "true", "", -kInf, kInf, false, false, "", "Write lattice.pvd and its .vtu files."},
+    {"output", "plots", "bool", "true", "", -kInf, kInf, false, false, "", "Make crack.png and energy.png at the end (also: --no-plot)."},
+
+    {"probe", "name", "string", "required", "", -kInf, kInf, false, false, "", "Column name in probes.csv."},
+    {"probe", "kind", "string", "required", "", -kInf, kInf, false, false, "\"bar_force\", \"reaction\", \"load\"", "What to record."},
+    {"probe", "at", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "bar_force: axial force [N] of the bar whose centre is nearest to this point."},
+    {"probe", "set", "string", "-", "", -kInf, kInf, false, false, "", "reaction: sum over the set's nodes of the force the supports apply [N]."},
+    {"probe", "component", "string", "\"z\"", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "reaction: component."},
+    {"probe", "load", "string", "-", "", -kInf, kInf, false, false, "", "load: name of the load whose total force [N] (component along its direction) is recorded."},
+  };
+  return keys;
+}
+// clang-format on
+
+std::string case_format_markdown() {
+  std::string md =
+      "# Case file format\n\n"
+      "A case is a TOML file. This page is generated from the declarations in\n"
+      "`src/io/case_keys.cpp` (`ldem case-format` prints it). Unknown keys are errors.\n"
+      "Tables: `[case]`, `[lattice]`, `[material]`, `[time]`, `[output]`; arrays of tables:\n"
+      "`[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`, `[[precrack]]`, `[[probe]]`;\n"
+      "a velocity or load may carry `function = [{ type = ..., ... }, ...]`, whose terms are\n"
+      "summed. Coordinates are in metres from the box's corner at the origin; the box spans\n"
+      "`[0, nx L] x [0, ny L] x [0, nz L]`.\n";
+  const char* last = "";
+  for (const KeyDecl& k : case_keys()) {
+    if (std::string(k.table) != last) {
+      const std::string t = k.table;
+      const bool array = t == "node_set" || t == "fixed" || t == "velocity" || t == "load" ||
+                         t == "precrack" || t == "probe";
+      md += fmt::format("\n## {}\n\n| key | type | default | unit | allowed | meaning |\n"
+                        "|---|---|---|---|---|---|\n",
+                        t == "function" ? "function terms (`function = [{...}]`)"
+                        : array         ? "[[" + t + "]]"
+                                        : "[" + t + "]");
+      last = k.table;
+    }
+    md += fmt::format("| `{}` | {} | {} | {} | {} | {} |\n", k.key, k.type, k.fallback, k.unit,
+                      k.range_text(), k.help);
+  }
+  return md;
+}
+
+} // namespace ldem

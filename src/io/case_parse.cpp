@@ -1,0 +1,551 @@
+// Reading a case file into a CaseSpec, with located, specific errors.
+#include "io/case_spec.hpp"
+#include "util/error.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <fstream>
+#include <sstream>
+#include <toml++/toml.h>
+
+namespace ldem {
+
+namespace {
+
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j)
+    row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t prev = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t cur = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, prev + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      prev = cur;
+    }
+  }
+  return row[b.size()];
+}
+
+std::vector<std::string> split_choices(const std::string& choices) {
+  std::vector<std::string> out;
+  std::string cur;
+  bool in = false;
+  for (char c : choices) {
+    if (c == '"') {
+      if (in)
+        out.push_back(cur);
+      cur.clear();
+      in = !in;
+    } else if (in) {
+      cur += c;
+    }
+  }
+  return out;
+}
+
+const char* kTopTables[] = {"case", "lattice", "material", "time", "output"};
+const char* kArrayTables[] = {"node_set", "fixed", "velocity", "load", "precrack", "probe"};
+
+class Reader {
+public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const toml::node* at, const std::string& key,
+                         const std::string& msg) const {
+    const int line = at ? static_cast<int>(at->source().begin.line) : 0;
+    throw InputError(line > 0 ? fmt::format("{}:{}: {}: {}", file_, line, key, msg)
+                              : fmt::format("{}: {}: {}", file_, key, msg));
+  }
+
+  const KeyDecl& decl(const char* table, const char* key) const {
+    for (const KeyDecl& k : case_keys())
+      if (std::string(k.table) == table && std::string(k.key) == key)
+        return k;
+    throw std::logic_error(fmt::format("undeclared case key {}.{}", table, key));
+  }
+
+  // Every key of `t` must be declared for `table`; a close match is suggested.
+  void check_known(const toml::table& t, const char* table, const std::string& where) const {
+    for (const auto& [k, node] : t) {
+      const std::string key(k.str());
+      bool known = false;
+      std::string best;
+      std::size_t best_d = 3;
+      for (const KeyDecl& d : case_keys()) {
+        if (std::string(d.table) != table)
+          continue;
+        if (key == d.key || (std::string(table) == "velocity" && key == "function") ||
+            (std::string(table) == "load" && key == "function")) {
+          known = true;
+          break;
+        }
+        const std::size_t dist = edit_distance(key, d.key);
+        if (dist < best_d) {
+          best_d = dist;
+          best = d.key;
+        }
+      }
+      if (!known)
+        fail(&node, where + key,
+             best.empty() ? fmt::format("unknown key in [{}]", table)
+                          : fmt::format("unknown key in [{}]; did you mean \"{}\"?", table, best));
+    }
+  }
+
+  const toml::node* find(const toml::table& t, const char* key) const { return t.get(key); }
+
+  bool has(const toml::table& t, const char* key) const { return t.contains(key); }
+
+  std::string describe(const toml::node& n) const {
+    std::ostringstream os;
+    if (n.is_string())
+      os << '"' << *n.value<std::string>() << '"';
+    else if (n.is_table())
+      os << "a table";
+    else if (n.is_array())
+      os << "an array of " << n.as_array()->size();
+    else
+      n.visit([&os](const auto& v) {
+        if constexpr (toml::is_value<decltype(v)>)
+          os << v;
+      });
+    return os.str();
+  }
+
+  void check_range(const KeyDecl& d, const toml::node* at, const std::string& key, double v) const {
+    const bool ok = (d.lo_open ? v > d.lo : v >= d.lo) && (d.hi_open ? v < d.hi : v <= d.hi) &&
+                    std::isfinite(v);
+    if (!ok)
+      fail(at, key,
+           fmt::format("expected a value {}{}, got {:g}", d.range_text(),
+                       *d.unit ? fmt::format(" ({})", d.unit) : "", v));
+  }
+
+  [[noreturn]] void missing(const toml::table& t, const std::string& key) const {
+    fail(&t, key, "missing required key");
+  }
+
+  std::optional<double> opt_float(const toml::table& t, const char* table, const char* key,
+                                  const std::string& where) const {
+    const KeyDecl& d = decl(table, key);
+    const toml::node* n = find(t, key);
+    const std::string name = where + key;
+    if (!n) {
+      if (std::string(d.fallback) == "required")
+        missing(t, name);
+      if (std::string(d.fallback) == "-")
+        return std::nullopt;
+      return std::stod(d.fallback);
+    }
+    if (!n->is_number())
+      fail(n, name,
+           fmt::format("expected a number{}, got {}", *d.unit ? fmt::format(" ({})", d.unit) : "",
+                       describe(*n)));
+    const double v =
+        n->is_integer() ? static_cast<double>(*n->value<std::int64_t>()) : *n->value<double>();
+    check_range(d, n, name, v);
+    return v;
+  }
+  double get_float(const toml::table& t, const char* table, const char* key,
+                   const std::string& where) const {
+    return *opt_float(t, table, key, where);
+  }
+
+  std::int64_t get_int(const toml::table& t, const char* table, const char* key,
+                       const std::string& where) const {
+    const KeyDecl& d = decl(table, key);
+    const toml::node* n = find(t, key);
+    const std::string name = where + key;
+    if (!n) {
+      if (std::string(d.fallback) == "required")
+        missing(t, name);
+      return std::stoll(d.fallback);
+    }
+    if (!n->is_integer())
+      fail(n, name, fmt::format("expected an integer, got {}", describe(*n)));
+    const auto v = *n->value<std::int64_t>();
+    check_range(d, n, name, static_cast<double>(v));
+    return v;
+  }
+
+  bool get_bool(const toml::table& t, const char* table, const char* key,
+                const std::string& where) const {
+    const KeyDecl& d = decl(table, key);
+    const toml::node* n = find(t, key);
+    if (!n)
+      return std::string(d.fallback) == "true";
+    if (!n->is_boolean())
+      fail(n, where + key, fmt::format("expected true or false, got {}", describe(*n)));
+    return *n->value<bool>();
+  }
+
+  std::optional<std::string> opt_string(const toml::table& t, const char* table, const char* key,
+                                        const std::string& where) const {
+    const KeyDecl& d = decl(table, key);
+    const toml::node* n = find(t, key);
+    const std::string name = where + key;
+    if (!n) {
+      if (std::string(d.fallback) == "required")
+        missing(t, name);
+      if (std::string(d.fallback) == "-")
+        return std::nullopt;
+      return split_choices(d.fallback).empty() ? std::string() : split_choices(d.fallback)[0];
+    }
+    if (!n->is_string())
+      fail(n, name, fmt::format("expected a string, got {}", describe(*n)));
+    const std::string v = *n->value<std::string>();
+    const auto choices = split_choices(d.choices);
+    if (!choices.empty() && std::find(choices.begin(), choices.end(), v) == choices.end())
+      fail(n, name, fmt::format("expected {}, got \"{}\"", d.range_text(), v));
+    return v;
+  }
+  std::string get_string(const toml::table& t, const char* table, const char* key,
+                         const std::string& where) const {
+    return *opt_string(t, table, key, where);
+  }
+
+  std::optional<Vec3> opt_vec3(const toml::table& t, const char* table, const char* key,
+                               const std::string& where) const {
+    const KeyDecl& d = decl(table, key);
+    const toml::node* n = find(t, key);
+    const std::string name = where + key;
+    if (!n) {
+      if (std::string(d.fallback) == "required")
+        missing(t, name);
+      return std::nullopt;
+    }
+    const toml::array* a = n->as_array();
+    if (!a || a->size() != 3 ||
+        !std::all_of(a->begin(), a->end(), [](const toml::node& e) { return e.is_number(); }))
+      fail(n, name,
+           fmt::format("expected 3 numbers [x, y, z]{}, got {}",
+                       *d.unit ? fmt::format(" ({})", d.unit) : "", describe(*n)));
+    double v[3];
+    for (int i = 0; i < 3; ++i) {
+      const toml::node& e = (*a)[static_cast<std::size_t>(i)];
+      v[i] = e.is_integer() ? static_cast<double>(*e.value<std::int64_t>()) : *e.value<double>();
+    }
+    return Vec3{v[0], v[1], v[2]};
+  }
+
+  DofMask dofs(const toml::table& t, const char* table, const std::string& where) const {
+    const std::string s = get_string(t, table, "dofs", where);
+    DofMask m = 0;
+    for (char c : s) {
+      if (c < 'x' || c > 'z')
+        fail(find(t, "dofs"), where + "dofs",
+             fmt::format("expected letters among x, y, z, got \"{}\"", s));
+      m |= static_cast<DofMask>(1u << (c - 'x'));
+    }
+    if (m == 0)
+      fail(find(t, "dofs"), where + "dofs", "expected at least one of x, y, z, got \"\"");
+    return m;
+  }
+
+  TimeFunction function(const toml::table& t, const std::string& where) const {
+    const toml::node* n = find(t, "function");
+    if (!n)
+      return TimeFunction();
+    const toml::array* a = n->as_array();
+    if (!a || a->empty())
+      fail(n, where + "function",
+           fmt::format("expected an array of tables {{ type = ... }}, got {}", describe(*n)));
+    std::vector<TimeTerm> terms;
+    for (std::size_t i = 0; i < a->size(); ++i) {
+      const toml::table* term = (*a)[i].as_table();
+      const std::string w = fmt::format("{}function[{}].", where, i);
+      if (!term)
+        fail(&(*a)[i], w,
+             fmt::format("expected a table {{ type = ... }}, got {}", describe((*a)[i])));
+      check_known(*term, "function", w);
+      const std::string type = get_string(*term, "function", "type", w);
+      auto need = [&](const char* key) {
+        const auto v = opt_float(*term, "function", key, w);
+        if (!v)
+          fail(term, w + key, fmt::format("required for a \"{}\" term", type));
+        return *v;
+      };
+      const double value = get_float(*term, "function", "value", w);
+      try {
+        if (type == "constant")
+          terms.emplace_back(Constant{value});
+        else if (type == "ramp")
+          terms.emplace_back(LinearRamp{value, need("duration")});
+        else if (type == "exp_rise")
+          terms.emplace_back(ExponentialRise{value, need("tau")});
+        else
+          terms.emplace_back(GrowingSine{need("amplitude"), need("frequency"),
+                                         get_float(*term, "function", "t_start", w), need("tau"),
+                                         get_float(*term, "function", "n_cycles", w)});
+      } catch (const InputError& e) {
+        fail(term, w, e.what());
+      }
+    }
+    return TimeFunction(std::move(terms));
+  }
+
+private:
+  std::string file_;
+};
+
+} // namespace
+
+CaseSpec parse_case(const std::string& text, const std::string& name) {
+  toml::table root;
+  try {
+    root = toml::parse(text, name);
+  } catch (const toml::parse_error& e) {
+    throw InputError(
+        fmt::format("{}:{}: malformed TOML: {}", name, e.source().begin.line, e.description()));
+  }
+  const Reader r(name);
+  CaseSpec c;
+  c.file = name;
+  // Top level: only the declared tables.
+  for (const auto& [k, node] : root) {
+    const std::string key(k.str());
+    const bool top = std::any_of(std::begin(kTopTables), std::end(kTopTables),
+                                 [&](const char* t) { return key == t; });
+    const bool arr = std::any_of(std::begin(kArrayTables), std::end(kArrayTables),
+                                 [&](const char* t) { return key == t; });
+    if (top && !node.is_table())
+      r.fail(&node, key, "expected a table [" + key + "]");
+    if (arr && !node.is_array_of_tables())
+      r.fail(&node, key, "expected an array of tables [[" + key + "]]");
+    if (!top && !arr) {
+      std::string best;
+      std::size_t best_d = 3;
+      for (const char* t : kTopTables)
+        if (edit_distance(key, t) < best_d)
+          best_d = edit_distance(key, t), best = t;
+      for (const char* t : kArrayTables)
+        if (edit_distance(key, t) < best_d)
+          best_d = edit_distance(key, t), best = t;
+      r.fail(&node, key,
+             best.empty() ? "unknown table"
+                          : fmt::format("unknown table; did you mean \"{}\"?", best));
+    }
+  }
+  auto table = [&](const char* t) -> const toml::table& {
+    static const toml::table empty;
+    const toml::table* p = root[t].as_table();
+    return p ? *p : empty;
+  };
+  auto array = [&](const char* t) {
+    std::vector<const toml::table*> out;
+    if (const toml::array* a = root[t].as_array())
+      for (const toml::node& e : *a)
+        out.push_back(e.as_table());
+    return out;
+  };
+
+  const toml::table& cs = table("case");
+  r.check_known(cs, "case", "case.");
+  c.title = r.get_string(cs, "case", "title", "case.");
+
+  const toml::table& lat = table("lattice");
+  if (!root.contains("lattice"))
+    r.fail(nullptr, "lattice", "missing required table [lattice]");
+  r.check_known(lat, "lattice", "lattice.");
+  {
+    const toml::node* n = lat.get("modules");
+    if (!n)
+      r.fail(&lat, "lattice.modules", "missing required key");
+    const toml::array* a = n->as_array();
+    if (!a || a->size() != 3 ||
+        !std::all_of(a->begin(), a->end(), [](const toml::node& e) { return e.is_integer(); }))
+      r.fail(n, "lattice.modules",
+             fmt::format("expected 3 integers [nx, ny, nz], got {}", r.describe(*n)));
+    index_t m[3];
+    for (int i = 0; i < 3; ++i) {
+      const auto v = *(*a)[static_cast<std::size_t>(i)].value<std::int64_t>();
+      r.check_range(r.decl("lattice", "modules"), n, "lattice.modules", static_cast<double>(v));
+      m[i] = static_cast<index_t>(v);
+    }
+    c.nx = m[0];
+    c.ny = m[1];
+    c.nz = m[2];
+  }
+  c.L = r.get_float(lat, "lattice", "L", "lattice.");
+  {
+    const std::string ps = r.get_string(lat, "lattice", "plane_strain", "lattice.");
+    c.plane_strain_axis = ps == "none" ? -1 : ps[0] - 'x';
+  }
+
+  const toml::table& mat = table("material");
+  if (!root.contains("material"))
+    r.fail(nullptr, "material", "missing required table [material]");
+  r.check_known(mat, "material", "material.");
+  r.get_string(mat, "material", "law", "material.");
+  c.material.E = r.get_float(mat, "material", "E", "material.");
+  c.material.nu = r.get_float(mat, "material", "nu", "material.");
+  c.material.rho = r.get_float(mat, "material", "rho", "material.");
+  c.material.Gf = r.get_float(mat, "material", "Gf", "material.");
+  c.material.e_p = r.opt_float(mat, "material", "e_p", "material.");
+  c.material.R_f = r.opt_float(mat, "material", "R_f", "material.");
+  c.material.e_r = r.opt_float(mat, "material", "e_r", "material.");
+  c.material.single_ratio = r.get_bool(mat, "material", "single_ratio", "material.");
+  c.material.allow_low_kr = r.get_bool(mat, "material", "allow_low_kr", "material.");
+  if (c.material.e_p.has_value() == c.material.R_f.has_value())
+    r.fail(&mat, "material.e_p",
+           c.material.e_p ? "expected e_p or R_f, not both" : "missing: give e_p or R_f");
+
+  std::vector<std::string> set_names;
+  const auto sets = array("node_set");
+  for (std::size_t i = 0; i < sets.size(); ++i) {
+    const toml::table& t = *sets[i];
+    const std::string w = fmt::format("node_set[{}].", i);
+    r.check_known(t, "node_set", w);
+    NodeSetSpec s;
+    s.name = r.get_string(t, "node_set", "name", w);
+    if (std::find(set_names.begin(), set_names.end(), s.name) != set_names.end())
+      r.fail(t.get("name"), w + "name", fmt::format("node set \"{}\" is defined twice", s.name));
+    const int ways = r.has(t, "face") + r.has(t, "face_centres") + r.has(t, "box_min") +
+                     (r.get_bool(t, "node_set", "all", w) ? 1 : 0);
+    if (ways != 1)
+      r.fail(&t, w + "face",
+             fmt::format("expected exactly one of face, face_centres, box_min/box_max, all = true; "
+                         "got {}",
+                         ways));
+    if (auto f = r.opt_string(t, "node_set", "face", w)) {
+      s.kind = NodeSetSpec::Kind::Face;
+      s.face = parse_face(*f);
+    } else if (auto fc = r.opt_string(t, "node_set", "face_centres", w)) {
+      s.kind = NodeSetSpec::Kind::FaceCentres;
+      s.face = parse_face(*fc);
+    } else if (r.has(t, "box_min")) {
+      s.kind = NodeSetSpec::Kind::Box;
+      s.lo = *r.opt_vec3(t, "node_set", "box_min", w);
+      const auto hi = r.opt_vec3(t, "node_set", "box_max", w);
+      if (!hi)
+        r.fail(&t, w + "box_max", "missing: box_min needs box_max");
+      s.hi = *hi;
+    }
+    set_names.push_back(s.name);
+    c.node_sets.push_back(s);
+  }
+  auto known_set = [&](const toml::table& t, const std::string& w) {
+    const std::string set = *r.opt_string(t, "fixed", "set", w);
+    if (std::find(set_names.begin(), set_names.end(), set) == set_names.end())
+      r.fail(t.get("set"), w + "set",
+             fmt::format("expected the name of a [[node_set]], got \"{}\"", set));
+    return set;
+  };
+
+  const auto fixed = array("fixed");
+  for (std::size_t i = 0; i < fixed.size(); ++i) {
+    const std::string w = fmt::format("fixed[{}].", i);
+    r.check_known(*fixed[i], "fixed", w);
+    c.fixed.push_back({known_set(*fixed[i], w), r.dofs(*fixed[i], "fixed", w)});
+  }
+  const auto vel = array("velocity");
+  for (std::size_t i = 0; i < vel.size(); ++i) {
+    const toml::table& t = *vel[i];
+    const std::string w = fmt::format("velocity[{}].", i);
+    r.check_known(t, "velocity", w);
+    VelocitySpec v;
+    v.set = known_set(t, w);
+    v.dofs = r.dofs(t, "velocity", w);
+    v.value = *r.opt_vec3(t, "velocity", "value", w);
+    const auto ramp = r.opt_float(t, "velocity", "ramp", w);
+    if (ramp && t.contains("function"))
+      r.fail(t.get("ramp"), w + "ramp", "expected ramp or function, not both");
+    v.scale = ramp ? TimeFunction({LinearRamp{1.0, *ramp}}) : r.function(t, w);
+    c.velocities.push_back(v);
+  }
+  const auto loads = array("load");
+  for (std::size_t i = 0; i < loads.size(); ++i) {
+    const toml::table& t = *loads[i];
+    const std::string w = fmt::format("load[{}].", i);
+    r.check_known(t, "load", w);
+    c.loads.push_back({r.get_string(t, "load", "name", w), known_set(t, w),
+                       *r.opt_vec3(t, "load", "force", w), r.function(t, w)});
+  }
+  const auto cracks = array("precrack");
+  for (std::size_t i = 0; i < cracks.size(); ++i) {
+    const toml::table& t = *cracks[i];
+    const std::string w = fmt::format("precrack[{}].", i);
+    r.check_known(t, "precrack", w);
+    c.precracks.push_back(
+        {{r.get_string(t, "precrack", "name", w), *r.opt_vec3(t, "precrack", "origin", w),
+          *r.opt_vec3(t, "precrack", "edge1", w), *r.opt_vec3(t, "precrack", "edge2", w)},
+         r.get_bool(t, "precrack", "nudge", w)});
+  }
+
+  const toml::table& time = table("time");
+  if (!root.contains("time"))
+    r.fail(nullptr, "time", "missing required table [time]");
+  r.check_known(time, "time", "time.");
+  c.end_time = r.get_float(time, "time", "end", "time.");
+  const std::string rule = r.get_string(time, "time", "rule", "time.");
+  c.step.rule = rule == "dt"      ? TimeStep::Rule::Given
+                : rule == "paper" ? TimeStep::Rule::Paper
+                                  : TimeStep::Rule::Safety;
+  c.step.safety = r.get_float(time, "time", "safety", "time.");
+  if (const auto dt = r.opt_float(time, "time", "dt", "time.")) {
+    if (c.step.rule != TimeStep::Rule::Given)
+      r.fail(time.get("dt"), "time.dt", "given, but rule is not \"dt\"; set rule = \"dt\"");
+    c.step.dt = *dt;
+  } else if (c.step.rule == TimeStep::Rule::Given) {
+    r.fail(&time, "time.dt", "missing: rule = \"dt\" needs dt");
+  }
+  c.damping = r.get_float(time, "time", "damping", "time.");
+
+  const toml::table& out = table("output");
+  r.check_known(out, "output", "output.");
+  c.output.energy_every =
+      static_cast<std::uint64_t>(r.get_int(out, "output", "energy_every", "output."));
+  c.output.vtu_every = static_cast<std::uint64_t>(r.get_int(out, "output", "vtu_every", "output."));
+  c.output.vtu = r.get_bool(out, "output", "vtu", "output.");
+  c.output.plots = r.get_bool(out, "output", "plots", "output.");
+
+  std::vector<std::string> load_names;
+  for (const LoadSpec& l : c.loads)
+    load_names.push_back(l.name);
+  const auto probes = array("probe");
+  for (std::size_t i = 0; i < probes.size(); ++i) {
+    const toml::table& t = *probes[i];
+    const std::string w = fmt::format("probe[{}].", i);
+    r.check_known(t, "probe", w);
+    ProbeSpec p;
+    p.name = r.get_string(t, "probe", "name", w);
+    const std::string kind = r.get_string(t, "probe", "kind", w);
+    if (kind == "bar_force") {
+      p.kind = ProbeSpec::Kind::BarForce;
+      const auto at = r.opt_vec3(t, "probe", "at", w);
+      if (!at)
+        r.fail(&t, w + "at", "missing: a bar_force probe needs at = [x, y, z]");
+      p.at = *at;
+    } else if (kind == "reaction") {
+      p.kind = ProbeSpec::Kind::Reaction;
+      if (!t.contains("set"))
+        r.fail(&t, w + "set", "missing: a reaction probe needs set");
+      p.set = known_set(t, w);
+      p.component = r.get_string(t, "probe", "component", w)[0] - 'x';
+    } else {
+      p.kind = ProbeSpec::Kind::Load;
+      const auto l = r.opt_string(t, "probe", "load", w);
+      if (!l || std::find(load_names.begin(), load_names.end(), *l) == load_names.end())
+        r.fail(t.get("load") ? t.get("load") : &t, w + "load",
+               fmt::format("expected the name of a [[load]], got {}",
+                           l ? "\"" + *l + "\"" : "nothing"));
+      p.load = *l;
+    }
+    c.probes.push_back(p);
+  }
+  return c;
+}
+
+CaseSpec read_case(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    throw InputError(fmt::format("{}: cannot read the case file (missing or not readable)", path));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_case(text.str(), path);
+}
+
+} // namespace ldem

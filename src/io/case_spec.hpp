@@ -1,0 +1,107 @@
+// A case file (TOML) parsed once into typed structs. Every key is declared once in
+// case_keys.cpp with its type, default, unit, range and help; the parser, the error messages
+// and docs/case-format.md all come from those declarations.
+#pragma once
+
+#include "lattice/node_set.hpp"
+#include "lattice/precrack.hpp"
+#include "material/bar_table.hpp"
+#include "solver/simulation.hpp"
+#include "solver/time_function.hpp"
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace ldem {
+
+struct NodeSetSpec {
+  std::string name;
+  enum class Kind { Face, FaceCentres, Box, All } kind = Kind::All;
+  Face face = Face::XMin;
+  Vec3 lo, hi;
+};
+
+struct FixedSpec {
+  std::string set;
+  DofMask dofs = kDofAll;
+};
+
+struct VelocitySpec {
+  std::string set;
+  DofMask dofs = kDofAll;
+  Vec3 value;
+  TimeFunction scale;
+};
+
+struct LoadSpec {
+  std::string name, set;
+  Vec3 force;
+  TimeFunction scale;
+};
+
+struct PrecrackSpec {
+  Rectangle rect;
+  bool nudge = false;
+};
+
+struct ProbeSpec {
+  std::string name;
+  enum class Kind { BarForce, Reaction, Load } kind = Kind::BarForce;
+  Vec3 at;           // bar_force: the bar whose centre is nearest
+  std::string set;   // reaction: node set
+  int component = 2; // reaction: 0, 1, 2
+  std::string load;  // load: name of the load
+};
+
+struct OutputSpec {
+  std::uint64_t energy_every = 0; // steps between energy rows (0: about 500 rows per run)
+  std::uint64_t vtu_every = 0;    // steps between lattice snapshots (0: about 20 per run)
+  bool vtu = true;
+  bool plots = true;
+};
+
+struct CaseSpec {
+  std::string file; // the case file's path, for messages
+  std::string title;
+  index_t nx = 0, ny = 0, nz = 0;
+  double L = 0.0;
+  int plane_strain_axis = -1;
+  MaterialSpec material;
+  std::vector<NodeSetSpec> node_sets;
+  std::vector<FixedSpec> fixed;
+  std::vector<VelocitySpec> velocities;
+  std::vector<LoadSpec> loads;
+  std::vector<PrecrackSpec> precracks;
+  double end_time = 0.0;
+  TimeStep step;
+  double damping = 0.0;
+  OutputSpec output;
+  std::vector<ProbeSpec> probes;
+};
+
+// Reads and validates a case file. Throws InputError with "FILE:LINE: key: expected ...,
+// got ..." (and a suggestion for a misspelt key).
+CaseSpec read_case(const std::string& path);
+// The same from text (for tests); `name` stands for the file in messages.
+CaseSpec parse_case(const std::string& text, const std::string& name);
+
+// One declared key: the documentation of the case format is generated from these.
+struct KeyDecl {
+  const char* table; // "lattice", "material", "node_set" (array of tables), ...
+  const char* key;
+  const char* type;     // "float", "integer", "string", "bool", "[3 floats]", ...
+  const char* fallback; // the default as written in a case, "required", or "-" (optional)
+  const char* unit;
+  double lo, hi; // allowed range of numbers (and of array elements)
+  bool lo_open, hi_open;
+  const char* choices; // allowed strings, "" if any
+  const char* help;
+  std::string range_text() const;
+};
+const std::vector<KeyDecl>& case_keys();
+// docs/case-format.md, generated from case_keys().
+std::string case_format_markdown();
+
+} // namespace ldem

@@ -1,0 +1,42 @@
+// Writing the output folder: every file is written under a temporary name and renamed into
+// place when complete, so a crash never leaves a half-written file under its final name.
+#pragma once
+
+#include "solver/simulation.hpp"
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+namespace ldem {
+
+// A file written to "<path>.part" and renamed to <path> by commit() (or by the destructor,
+// so that what was written survives an early stop).
+class OutputFile {
+public:
+  explicit OutputFile(std::string path);
+  ~OutputFile();
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+  void write(const std::string& text);
+  void flush();
+  void commit();
+  const std::string& path() const { return path_; }
+
+private:
+  std::string path_, part_;
+  std::FILE* f_ = nullptr;
+};
+
+// Writes a whole file at once (temporary name, then rename).
+void write_file(const std::string& path, const std::string& text);
+
+// One VTK XML unstructured grid of the lattice at the current state: nodes at their reference
+// positions with displacement and velocity, bars as lines with state (0 intact, 1 softening,
+// 2 broken), damage (dissipated energy over Gf A^f, 0 to 1), axial force and, where a field
+// varies, e_p. Binary (base64) arrays.
+std::string lattice_vtu(const Simulation& sim);
+// The ParaView collection that lists the snapshots.
+std::string lattice_pvd(const std::vector<std::pair<double, std::string>>& snapshots);
+
+} // namespace ldem
