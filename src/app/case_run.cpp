@@ -272,8 +272,8 @@ int check_command(const std::string& path) {
 
 namespace {
 
-// Checks the output folder before anything is written: it must be creatable or empty (or
-// `force`), and writable.
+// Makes the output folder ready, after the case has been validated: it must be new or empty
+// (or `force`), and writable. Nothing is created or changed when this throws.
 void prepare_output(const std::string& dir, bool force) {
   std::error_code ec;
   if (fs::exists(dir, ec)) {
@@ -283,16 +283,17 @@ void prepare_output(const std::string& dir, bool force) {
       throw InputError(fmt::format("--out {}: the folder is not empty; choose another or pass "
                                    "--force to overwrite its results",
                                    dir));
-    if (access(dir.c_str(), W_OK) != 0)
+    const std::string probe = dir + "/.ldem-write-test";
+    std::FILE* f = std::fopen(probe.c_str(), "wb");
+    if (!f)
       throw InputError(fmt::format("--out {}: the folder is not writable", dir));
+    std::fclose(f);
+    fs::remove(probe, ec);
     return;
   }
-  fs::path parent = fs::absolute(dir, ec).parent_path();
-  while (!parent.empty() && !fs::exists(parent, ec))
-    parent = parent.parent_path();
-  if (parent.empty() || access(parent.c_str(), W_OK) != 0)
-    throw InputError(fmt::format("--out {}: cannot create the folder ({} is not writable)", dir,
-                                 parent.string()));
+  if (!fs::create_directories(dir, ec) || ec)
+    throw InputError(fmt::format("--out {}: cannot create the folder ({})", dir,
+                                 ec ? ec.message() : "unknown reason"));
 }
 
 class Progress {
@@ -339,7 +340,6 @@ int run_command(const std::string& path, const RunOptions& o) {
   const CaseSpec& s = c.spec;
   Simulation& sim = *c.sim;
   const Lattice& lat = sim.lattice();
-  fs::create_directories(o.out_dir);
   for (const auto& e : fs::directory_iterator(o.out_dir)) // --force: old snapshots go
     if (e.path().extension() == ".vtu" && e.path().filename().string().rfind("lattice_", 0) == 0)
       fs::remove(e.path());

@@ -1,0 +1,102 @@
+#!/usr/bin/env python3
+"""Checks an ldem output folder against the output contract, reading the ParaView files with
+VTK's own readers (Debian's python3-vtk9), not with ldem's code.
+
+usage: check_outputs.py DIR     exits non-zero with a message on the first violation
+"""
+import csv
+import json
+import math
+import os
+import sys
+import tomllib
+import xml.etree.ElementTree as ET
+
+import vtk
+from vtk.util.numpy_support import vtk_to_numpy
+
+
+def fail(msg):
+    sys.exit("check_outputs: " + msg)
+
+
+def main():
+    d = sys.argv[1]
+    for name in ["case.resolved.toml", "energy.csv", "events.csv", "probes.csv", "summary.json",
+                 "lattice.pvd"]:
+        if not os.path.isfile(os.path.join(d, name)):
+            fail(f"{name} missing")
+    if [f for f in os.listdir(d) if f.endswith(".part")]:
+        fail("a temporary .part file was left behind")
+    with open(os.path.join(d, "case.resolved.toml"), "rb") as f:
+        case = tomllib.load(f)
+    res = case["resolved"]
+    with open(os.path.join(d, "energy.csv")) as f:
+        header = f.readline().strip()
+        if header != ("time,external_work,elastic,kinetic,damage_dissipated,"
+                      "damping_dissipated,balance_error"):
+            fail(f"energy.csv header: {header}")
+        rows = list(csv.reader(f))
+    last = [float(v) for v in rows[-1]]
+    if not last[0] > 0:
+        fail("energy.csv: no time advanced")
+    summary = json.load(open(os.path.join(d, "summary.json")))
+    for key in ["nodes", "bars", "steps", "dt", "dt_stable", "wall_s", "bar_updates_per_s",
+                "threads", "max_balance_error", "broken_bars_at_end", "softening_bars_at_end",
+                "analysis"]:
+        if key not in summary:
+            fail(f"summary.json lacks {key}")
+    if summary["max_balance_error"] > 0.01:
+        fail(f"balance error {summary['max_balance_error']} above 1 %")
+    with open(os.path.join(d, "events.csv")) as f:
+        if f.readline().strip() != "bar,event,time,x,y,z":
+            fail("events.csv header")
+        events = list(csv.reader(f))
+    broken = {int(r[0]) for r in events if r[1] == "broken"}
+    softened = {int(r[0]) for r in events if r[1] == "softening"}
+    if not broken <= softened:
+        fail("a bar broke without a softening event")
+    with open(os.path.join(d, "probes.csv")) as f:
+        ph = f.readline().strip().split(",")
+    if ph != ["time"] + [p["name"] for p in case.get("probe", [])]:
+        fail(f"probes.csv header {ph}")
+
+    # The PVD collection (an XML list, parsed with the standard library; VTK's Python module has
+    # no reader for it) and every snapshot it lists, read by VTK.
+    root = ET.parse(os.path.join(d, "lattice.pvd")).getroot()
+    if root.get("type") != "Collection":
+        fail("lattice.pvd is not a VTK collection")
+    sets = list(root.iter("DataSet"))
+    times = [float(e.get("timestep")) for e in sets]
+    if times != sorted(times):
+        fail("lattice.pvd: time steps out of order")
+    files = [e.get("file") for e in sets]
+    reader = vtk.vtkXMLUnstructuredGridReader()
+    if not files:
+        fail("lattice.pvd lists no dataset")
+    for name in files:
+        reader.SetFileName(os.path.join(d, name))
+        reader.Update()
+        g = reader.GetOutput()
+        if g.GetNumberOfPoints() != res["nodes"] or g.GetNumberOfCells() != res["bars"]:
+            fail(f"{name}: {g.GetNumberOfPoints()} points, {g.GetNumberOfCells()} cells")
+    g = reader.GetOutput()  # the last snapshot: the end of the run
+    state = vtk_to_numpy(g.GetCellData().GetArray("state"))
+    n_broken_vtu = int((state == 2).sum())
+    expected = len(broken) + res["precracked_bars"]
+    if n_broken_vtu != expected:
+        fail(f"last snapshot has {n_broken_vtu} broken bars; events + pre-cracks give {expected}")
+    if int((state >= 1).sum()) != len(softened | broken) + res["precracked_bars"]:
+        fail("softening/broken states of the last snapshot disagree with events.csv")
+    if summary["broken_bars_at_end"] != n_broken_vtu:
+        fail("summary.json broken count disagrees with the last snapshot")
+    disp = vtk_to_numpy(g.GetPointData().GetArray("displacement"))
+    if disp.shape != (res["nodes"], 3) or not math.isfinite(float(abs(disp).max())):
+        fail("displacement array")
+    print(f"check_outputs: {d}: {len(files)} snapshots read by VTK, "
+          f"{len(rows)} energy rows, {len(broken)} bars broken in the run, balance "
+          f"{summary['max_balance_error']:.2e}: all consistent")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,153 @@
+// Case files: every kind of bad input gets a located, specific message.
+#include <gtest/gtest.h>
+#include <string>
+
+#include "io/case_spec.hpp"
+#include "util/error.hpp"
+
+namespace ldem {
+namespace {
+
+const std::string kGood = R"(
+[lattice]
+modules = [4, 1, 4]
+L = 0.01
+plane_strain = "y"
+
+[material]
+E = 30e9
+rho = 2400
+Gf = 100
+e_p = 1e-4
+
+[[node_set]]
+name = "top"
+face = "z+"
+
+[[velocity]]
+set = "top"
+dofs = "z"
+value = [0, 0, 0.01]
+function = [{ type = "ramp", duration = 1e-4 }, { type = "constant", value = 0.5 }]
+
+[time]
+end = 1e-4
+)";
+
+// Replaces the first occurrence of `from` in the good case.
+std::string edit(const std::string& from, const std::string& to) {
+  std::string s = kGood;
+  const auto p = s.find(from);
+  EXPECT_NE(p, std::string::npos) << from;
+  return s.replace(p, from.size(), to);
+}
+
+std::string error_of(const std::string& text) {
+  try {
+    parse_case(text, "case.toml");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(CaseFile, GoodCaseParsesWithDefaults) {
+  const CaseSpec c = parse_case(kGood, "case.toml");
+  EXPECT_EQ(c.nx, 4u);
+  EXPECT_EQ(c.nz, 4u);
+  EXPECT_EQ(c.plane_strain_axis, 1);
+  EXPECT_DOUBLE_EQ(c.material.nu, 0.25);      // declared default
+  EXPECT_DOUBLE_EQ(c.step.safety, 0.9);       // declared default
+  EXPECT_EQ(c.step.rule, TimeStep::Rule::Safety);
+  ASSERT_EQ(c.velocities.size(), 1u);
+  EXPECT_EQ(c.velocities[0].dofs, kDofZ);
+  // ramp(t = duration / 2) = 0.5, plus the constant 0.5.
+  EXPECT_DOUBLE_EQ(c.velocities[0].scale(0.5e-4), 1.0);
+}
+
+TEST(CaseFile, MalformedToml) {
+  const std::string e = error_of(edit("L = 0.01", "L = = 0.01"));
+  EXPECT_NE(e.find("case.toml:4: malformed TOML"), std::string::npos) << e;
+}
+
+TEST(CaseFile, UnknownKeyWithSuggestion) {
+  const std::string e = error_of(edit("Gf = 100", "Gff = 100"));
+  EXPECT_NE(e.find("case.toml:10: material.Gff: unknown key in [material]; did you mean \"Gf\"?"),
+            std::string::npos)
+      << e;
+}
+
+TEST(CaseFile, UnknownTable) {
+  const std::string e = error_of(kGood + "\n[outptu]\nvtu = false\n");
+  EXPECT_NE(e.find("outptu: unknown table; did you mean \"output\"?"), std::string::npos) << e;
+}
+
+TEST(CaseFile, WrongType) {
+  const std::string e = error_of(edit("E = 30e9", "E = \"stiff\""));
+  EXPECT_NE(e.find("case.toml:8: material.E: expected a number (Pa), got \"stiff\""),
+            std::string::npos)
+      << e;
+}
+
+TEST(CaseFile, OutOfRange) {
+  std::string e = error_of(edit("e_p = 1e-4", "e_p = 1e-4\nnu = 0.6"));
+  EXPECT_NE(e.find("material.nu: expected a value (0, 0.5), got 0.6"), std::string::npos) << e;
+  e = error_of(edit("L = 0.01", "L = -0.01"));
+  EXPECT_NE(e.find("case.toml:4: lattice.L: expected a value > 0 (m), got -0.01"),
+            std::string::npos)
+      << e;
+  e = error_of(edit("dofs = \"z\"", "dofs = \"w\""));
+  EXPECT_NE(e.find("velocity[0].dofs: expected letters among x, y, z, got \"w\""),
+            std::string::npos)
+      << e;
+  e = error_of(edit("plane_strain = \"y\"", "plane_strain = \"q\""));
+  EXPECT_NE(e.find("lattice.plane_strain: expected one of \"none\", \"x\", \"y\", \"z\", got \"q\""),
+            std::string::npos)
+      << e;
+}
+
+TEST(CaseFile, MissingRequiredKey) {
+  std::string e = error_of(edit("L = 0.01\n", ""));
+  EXPECT_NE(e.find("lattice.L: missing required key"), std::string::npos) << e;
+  e = error_of(edit("e_p = 1e-4\n", ""));
+  EXPECT_NE(e.find("material.e_p: missing: give e_p or R_f"), std::string::npos) << e;
+  e = error_of(edit("[time]\nend = 1e-4\n", ""));
+  EXPECT_NE(e.find("time: missing required table [time]"), std::string::npos) << e;
+}
+
+TEST(CaseFile, UnknownNodeSetName) {
+  const std::string e = error_of(edit("set = \"top\"", "set = \"tops\""));
+  EXPECT_NE(e.find("velocity[0].set: expected the name of a [[node_set]], got \"tops\""),
+            std::string::npos)
+      << e;
+}
+
+TEST(CaseFile, BadTimeFunctionTerm) {
+  const std::string e = error_of(edit("{ type = \"ramp\", duration = 1e-4 }", "{ type = \"ramp\" }"));
+  EXPECT_NE(e.find("velocity[0].function[0].duration: required for a \"ramp\" term"),
+            std::string::npos)
+      << e;
+}
+
+TEST(CaseFile, MissingFileIsNamed) {
+  try {
+    read_case("/nonexistent/case.toml");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/case.toml: cannot read the case file"),
+              std::string::npos);
+  }
+}
+
+// Every declared key appears in the generated reference, with its unit and default.
+TEST(CaseFile, FormatReferenceListsEveryKey) {
+  const std::string md = case_format_markdown();
+  for (const KeyDecl& k : case_keys())
+    EXPECT_NE(md.find(std::string("| `") + k.key + "` | " + k.type + " | " + k.fallback + " | " +
+                      k.unit + " |"),
+              std::string::npos)
+        << k.table << "." << k.key;
+}
+
+} // namespace
+} // namespace ldem

@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# The ldem command line as a user meets it: exit codes, messages, and output folders that are
+# never created or changed by bad input. usage: test_cli.sh LDEM SOURCE_DIR
+set -uo pipefail
+LDEM=$1
+SRC=$2
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fails=0
+pass=0
+ok() { pass=$((pass + 1)); }
+bad() { echo "FAIL: $*"; fails=$((fails + 1)); }
+GOOD="$SRC/cases/tutorial/notched_plate.toml"
+
+# expect_error NAME PATTERN CASEFILE [extra args]: exit 2, message matches, no output folder.
+expect_error() {
+  local name=$1 pattern=$2 case=$3
+  shift 3
+  local out="$T/out_$name"
+  "$LDEM" run "$case" --out "$out" --no-plot "$@" >"$T/stdout" 2>"$T/stderr"
+  local rc=$?
+  if [ $rc -ne 2 ]; then bad "$name: exit code $rc, expected 2"; return; fi
+  if ! grep -q -- "$pattern" "$T/stderr"; then bad "$name: message '$(cat "$T/stderr")' lacks '$pattern'"; return; fi
+  if [ -e "$out" ]; then bad "$name: output folder was created"; return; fi
+  ok
+}
+# variant NAME SED_EXPRESSION: the tutorial case edited.
+variant() { sed "$2" "$GOOD" >"$T/$1.toml"; echo "$T/$1.toml"; }
+
+"$LDEM" >/dev/null 2>&1 && "$LDEM" --help | grep -q "run" && ok || bad "ldem without arguments"
+"$LDEM" --version | grep -q "^ldem " && ok || bad "--version"
+
+expect_error missing_case "cannot read the case file" "$T/nope.toml"
+expect_error malformed "malformed TOML" "$(variant malformed 's/^L = 0.005/L = = 0.005/')"
+expect_error unknown_key 'did you mean "Gf"' "$(variant unknown 's/^Gf = /Gff = /')"
+expect_error wrong_type 'material.E: expected a number (Pa), got "x"' "$(variant type 's/^E = 35.0e9/E = "x"/')"
+expect_error out_of_range "material.nu: expected a value (0, 0.5), got 0.7" "$(variant range 's/^rho = 2400.0/rho = 2400.0\nnu = 0.7/')"
+expect_error missing_key "lattice.L: missing required key" "$(variant missing '/^L = 0.005/d')"
+expect_error low_kr "K_r = e_r / e_p < 1" "$(variant kr 's/^Gf = 10.0/Gf = 0.5/')"
+expect_error unstable_dt "above the stable limit" "$(variant dt 's/^damping = 200.0/damping = 200.0\nrule = "dt"\ndt = 1e-5/')"
+expect_error empty_set 'node set "top" (box' "$(variant empty 's/^face = "z+"/box_min = [1, 1, 1]\nbox_max = [2, 2, 2]/')"
+expect_error precrack_outside "crosses no bar: it lies outside the body" "$(variant outside 's/^origin = \[-0.0001, -0.001, 0.05125\]/origin = [1.0, -0.001, 0.05125]/')"
+"$LDEM" run "$GOOD" --out /proc/ldem-test/out --no-plot >/dev/null 2>"$T/stderr"
+rc=$?
+if [ $rc -eq 2 ] && grep -q "cannot create the folder" "$T/stderr" && [ ! -e /proc/ldem-test ]; then ok; else bad "unwritable folder: rc $rc, $(cat "$T/stderr")"; fi
+
+mkdir -p "$T/full" && echo keep >"$T/full/marker"
+"$LDEM" run "$GOOD" --out "$T/full" --no-plot >/dev/null 2>"$T/stderr"
+rc=$?
+if [ $rc -eq 2 ] && grep -q "not empty" "$T/stderr" && [ "$(ls "$T/full")" = "marker" ]; then ok; else bad "non-empty folder: rc $rc, $(ls "$T/full")"; fi
+
+# A real run, checked by an independent reader, then re-plotted.
+if "$LDEM" run "$GOOD" --out "$T/run" --threads 2 >"$T/stdout" 2>"$T/stderr"; then ok; else bad "tutorial run: $(cat "$T/stderr")"; fi
+/usr/bin/python3 "$SRC/tests/check_outputs.py" "$T/run" && ok || bad "outputs of the tutorial run"
+[ -s "$T/run/crack.png" ] && [ -s "$T/run/energy.png" ] && ok || bad "PNG plots missing"
+rm -f "$T/run/crack.png" "$T/run/energy.png"
+"$LDEM" plot "$T/run" && [ -s "$T/run/crack.png" ] && ok || bad "ldem plot"
+"$LDEM" run "$GOOD" --out "$T/run" --force --no-plot >/dev/null 2>&1 && ok || bad "--force into a used folder"
+
+# Every shipped case is valid.
+while IFS= read -r c; do
+  "$LDEM" check "$c" >/dev/null 2>"$T/stderr" && ok || bad "ldem check $c: $(cat "$T/stderr")"
+done < <(find "$SRC/cases" -name '*.toml' | sort)
+
+# The case-format reference is the one the declarations generate.
+"$LDEM" case-format | diff -q - "$SRC/docs/case-format.md" >/dev/null && ok || bad "docs/case-format.md is stale: run ldem case-format > docs/case-format.md"
+
+echo "cli: $pass passed, $fails failed"
+[ $fails -eq 0 ]
