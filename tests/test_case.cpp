@@ -1,9 +1,9 @@
 // Case files: every kind of bad input gets a located, specific message.
-#include <gtest/gtest.h>
-#include <string>
-
 #include "io/case_spec.hpp"
 #include "util/error.hpp"
+
+#include <gtest/gtest.h>
+#include <string>
 
 namespace ldem {
 namespace {
@@ -56,8 +56,8 @@ TEST(CaseFile, GoodCaseParsesWithDefaults) {
   EXPECT_EQ(c.nx, 4u);
   EXPECT_EQ(c.nz, 4u);
   EXPECT_EQ(c.plane_strain_axis, 1);
-  EXPECT_DOUBLE_EQ(c.material.nu, 0.25);      // declared default
-  EXPECT_DOUBLE_EQ(c.step.safety, 0.9);       // declared default
+  EXPECT_DOUBLE_EQ(c.material.nu, 0.25); // declared default
+  EXPECT_DOUBLE_EQ(c.step.safety, 0.9);  // declared default
   EXPECT_EQ(c.step.rule, TimeStep::Rule::Safety);
   ASSERT_EQ(c.velocities.size(), 1u);
   EXPECT_EQ(c.velocities[0].dofs, kDofZ);
@@ -101,8 +101,9 @@ TEST(CaseFile, OutOfRange) {
             std::string::npos)
       << e;
   e = error_of(edit("plane_strain = \"y\"", "plane_strain = \"q\""));
-  EXPECT_NE(e.find("lattice.plane_strain: expected one of \"none\", \"x\", \"y\", \"z\", got \"q\""),
-            std::string::npos)
+  EXPECT_NE(
+      e.find("lattice.plane_strain: expected one of \"none\", \"x\", \"y\", \"z\", got \"q\""),
+      std::string::npos)
       << e;
 }
 
@@ -123,7 +124,8 @@ TEST(CaseFile, UnknownNodeSetName) {
 }
 
 TEST(CaseFile, BadTimeFunctionTerm) {
-  const std::string e = error_of(edit("{ type = \"ramp\", duration = 1e-4 }", "{ type = \"ramp\" }"));
+  const std::string e =
+      error_of(edit("{ type = \"ramp\", duration = 1e-4 }", "{ type = \"ramp\" }"));
   EXPECT_NE(e.find("velocity[0].function[0].duration: required for a \"ramp\" term"),
             std::string::npos)
       << e;
