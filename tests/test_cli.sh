@@ -57,6 +57,14 @@ rm -f "$T/run/crack.png" "$T/run/energy.png"
 "$LDEM" plot "$T/run" && [ -s "$T/run/crack.png" ] && ok || bad "ldem plot"
 "$LDEM" run "$GOOD" --out "$T/run" --force --no-plot >/dev/null 2>&1 && ok || bad "--force into a used folder"
 
+# Ctrl-C: a clean stop, exit code 130, every file complete up to then and under its name.
+sed 's/^end = 4.0e-3/end = 4.0/' "$GOOD" >"$T/long.toml"
+timeout -s INT --preserve-status 2 "$LDEM" run "$T/long.toml" --out "$T/int" --no-plot >/dev/null 2>"$T/stderr"
+rc=$?
+if [ $rc -eq 130 ] && grep -q '"interrupted": true' "$T/int/summary.json" && ! ls "$T/int" | grep -q '\.part$' &&
+  [ "$(head -1 "$T/int/energy.csv")" = "time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,balance_error" ] &&
+  [ "$(wc -l <"$T/int/energy.csv")" -gt 2 ]; then ok; else bad "Ctrl-C: rc $rc, $(ls "$T/int" | tr '\n' ' ')"; fi
+
 # Every shipped case is valid.
 while IFS= read -r c; do
   "$LDEM" check "$c" >/dev/null 2>"$T/stderr" && ok || bad "ldem check $c: $(cat "$T/stderr")"
