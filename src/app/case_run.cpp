@@ -15,6 +15,7 @@
 #include <sstream>
 #include <toml++/toml.h>
 #include <unistd.h>
+#include <variant>
 
 #ifndef LDEM_PLOT_SCRIPT
 #define LDEM_PLOT_SCRIPT "tools/plot/ldem_plot.py"
@@ -177,14 +178,47 @@ std::string resolved_case_toml(const BuiltCase& c) {
   }
   if (!sets.empty())
     root.insert("node_set", sets);
+  auto function = [](const TimeFunction& f) {
+    toml::array terms;
+    for (const TimeTerm& term : f.terms())
+      std::visit(
+          [&terms](const auto& t) {
+            using T = std::decay_t<decltype(t)>;
+            if constexpr (std::is_same_v<T, Constant>)
+              terms.push_back(toml::table{{"type", "constant"}, {"value", t.value}});
+            else if constexpr (std::is_same_v<T, LinearRamp>)
+              terms.push_back(
+                  toml::table{{"type", "ramp"}, {"value", t.value}, {"duration", t.duration}});
+            else if constexpr (std::is_same_v<T, ExponentialRise>)
+              terms.push_back(
+                  toml::table{{"type", "exp_rise"}, {"value", t.value}, {"tau", t.tau}});
+            else
+              terms.push_back(toml::table{{"type", "growing_sine"},
+                                          {"amplitude", t.amplitude},
+                                          {"frequency", t.frequency},
+                                          {"t_start", t.t_start},
+                                          {"tau", t.tau},
+                                          {"n_cycles", t.n_cycles}});
+          },
+          term);
+    // Inline tables ({ type = ... }), as a case writes them.
+    for (auto& t : terms)
+      t.as_table()->is_inline(true);
+    return terms;
+  };
   toml::array fixed, vel, loads, cracks, probes;
   for (const FixedSpec& f : s.fixed)
     fixed.push_back(toml::table{{"set", f.set}, {"dofs", dofs_text(f.dofs)}});
   for (const VelocitySpec& v : s.velocities)
-    vel.push_back(
-        toml::table{{"set", v.set}, {"dofs", dofs_text(v.dofs)}, {"value", vec(v.value)}});
+    vel.push_back(toml::table{{"set", v.set},
+                              {"dofs", dofs_text(v.dofs)},
+                              {"value", vec(v.value)},
+                              {"function", function(v.scale)}});
   for (const LoadSpec& l : s.loads)
-    loads.push_back(toml::table{{"name", l.name}, {"set", l.set}, {"force", vec(l.force)}});
+    loads.push_back(toml::table{{"name", l.name},
+                                {"set", l.set},
+                                {"force", vec(l.force)},
+                                {"function", function(l.scale)}});
   for (std::size_t i = 0; i < s.precracks.size(); ++i) {
     const PrecrackSpec& p = s.precracks[i];
     cracks.push_back(toml::table{{"name", p.rect.name},

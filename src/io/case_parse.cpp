@@ -124,22 +124,22 @@ public:
                        *d.unit ? fmt::format(" ({})", d.unit) : "", v));
   }
 
-  [[noreturn]] void missing(const toml::table& t, const std::string& key) const {
-    fail(&t, key, "missing required key");
+  // The key's node, or nullptr when the key is absent; a missing required key is an error.
+  const toml::node* lookup(const toml::table& t, const KeyDecl& d, const std::string& name) const {
+    const toml::node* n = t.get(d.key);
+    if (!n && std::string(d.fallback) == "required")
+      fail(&t, name, "missing required key");
+    return n;
   }
+  static bool no_default(const KeyDecl& d) { return std::string(d.fallback) == "-"; }
 
   std::optional<double> opt_float(const toml::table& t, const char* table, const char* key,
                                   const std::string& where) const {
     const KeyDecl& d = decl(table, key);
-    const toml::node* n = find(t, key);
     const std::string name = where + key;
-    if (!n) {
-      if (std::string(d.fallback) == "required")
-        missing(t, name);
-      if (std::string(d.fallback) == "-")
-        return std::nullopt;
-      return std::stod(d.fallback);
-    }
+    const toml::node* n = lookup(t, d, name);
+    if (!n)
+      return no_default(d) ? std::nullopt : std::optional<double>(std::stod(d.fallback));
     if (!n->is_number())
       fail(n, name,
            fmt::format("expected a number{}, got {}", *d.unit ? fmt::format(" ({})", d.unit) : "",
@@ -157,13 +157,10 @@ public:
   std::int64_t get_int(const toml::table& t, const char* table, const char* key,
                        const std::string& where) const {
     const KeyDecl& d = decl(table, key);
-    const toml::node* n = find(t, key);
     const std::string name = where + key;
-    if (!n) {
-      if (std::string(d.fallback) == "required")
-        missing(t, name);
+    const toml::node* n = lookup(t, d, name);
+    if (!n)
       return std::stoll(d.fallback);
-    }
     if (!n->is_integer())
       fail(n, name, fmt::format("expected an integer, got {}", describe(*n)));
     const auto v = *n->value<std::int64_t>();
@@ -174,7 +171,7 @@ public:
   bool get_bool(const toml::table& t, const char* table, const char* key,
                 const std::string& where) const {
     const KeyDecl& d = decl(table, key);
-    const toml::node* n = find(t, key);
+    const toml::node* n = lookup(t, d, where + key);
     if (!n)
       return std::string(d.fallback) == "true";
     if (!n->is_boolean())
@@ -185,14 +182,13 @@ public:
   std::optional<std::string> opt_string(const toml::table& t, const char* table, const char* key,
                                         const std::string& where) const {
     const KeyDecl& d = decl(table, key);
-    const toml::node* n = find(t, key);
     const std::string name = where + key;
+    const toml::node* n = lookup(t, d, name);
     if (!n) {
-      if (std::string(d.fallback) == "required")
-        missing(t, name);
-      if (std::string(d.fallback) == "-")
+      if (no_default(d))
         return std::nullopt;
-      return split_choices(d.fallback).empty() ? std::string() : split_choices(d.fallback)[0];
+      const auto quoted = split_choices(d.fallback);
+      return quoted.empty() ? std::string() : quoted[0];
     }
     if (!n->is_string())
       fail(n, name, fmt::format("expected a string, got {}", describe(*n)));
@@ -210,13 +206,10 @@ public:
   std::optional<Vec3> opt_vec3(const toml::table& t, const char* table, const char* key,
                                const std::string& where) const {
     const KeyDecl& d = decl(table, key);
-    const toml::node* n = find(t, key);
     const std::string name = where + key;
-    if (!n) {
-      if (std::string(d.fallback) == "required")
-        missing(t, name);
+    const toml::node* n = lookup(t, d, name);
+    if (!n)
       return std::nullopt;
-    }
     const toml::array* a = n->as_array();
     if (!a || a->size() != 3 ||
         !std::all_of(a->begin(), a->end(), [](const toml::node& e) { return e.is_number(); }))
