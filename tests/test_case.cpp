@@ -153,3 +153,35 @@ TEST(CaseFile, FormatReferenceListsEveryKey) {
 
 } // namespace
 } // namespace ldem
+
+namespace ldem {
+namespace {
+
+TEST(CaseFile, MaterialFieldsParse) {
+  std::string text = kGood;
+  text.replace(text.find("e_p = 1e-4"), 10,
+               "e_p = { type = \"linear\", axis = \"z\", values = [1e-4, 3e-4] }\n"
+               "Gf = { type = \"weibull\", mean = 100.0, cv = 0.1, seed = 3 }");
+  text.replace(text.find("Gf = 100\n"), 9, "");
+  const CaseSpec c = parse_case(text, "case.toml");
+  ASSERT_TRUE(c.fields.e_p.has_value());
+  EXPECT_EQ(c.fields.e_p->kind, Field::Kind::Linear);
+  // Without `at`, the grading spans the body: z from 0 to nz L = 0.04 m.
+  EXPECT_DOUBLE_EQ(c.fields.e_p->table.back().first, 0.04);
+  EXPECT_DOUBLE_EQ(c.material.e_p.value(), 2e-4); // representative: mean of the two values
+  ASSERT_TRUE(c.fields.Gf.has_value());
+  EXPECT_EQ(c.fields.Gf->seed, 3u);
+  EXPECT_DOUBLE_EQ(c.material.Gf, 100.0);
+}
+
+TEST(CaseFile, BadFieldIsNamed) {
+  const std::string e =
+      error_of(edit("Gf = 100", "Gf = { type = \"weibul\", mean = 100.0, cv = 0.1 }"));
+  EXPECT_NE(e.find("material.Gf.type: expected one of \"linear\", \"table\", \"weibull\", got "
+                   "\"weibul\""),
+            std::string::npos)
+      << e;
+}
+
+} // namespace
+} // namespace ldem

@@ -1,11 +1,11 @@
 // Property fields: gradings and Weibull random fields.
+#include "material/field.hpp"
+#include "util/error.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <gtest/gtest.h>
 #include <omp.h>
-
-#include "material/field.hpp"
-#include "util/error.hpp"
 
 namespace ldem {
 namespace {

@@ -116,7 +116,21 @@ BuiltCase build_case(const std::string& path) {
       }
       c.probe_bars.push_back(best);
     }
-    BarTable table(lat, s.material);
+    BarFields fields;
+    const std::pair<const std::optional<Field>*, std::vector<double>*> props[] = {
+        {&s.fields.E, &fields.E},
+        {&s.fields.Gf, &fields.Gf},
+        {&s.fields.e_p, &fields.e_p},
+        {&s.fields.e_r, &fields.e_r},
+        {&s.fields.R_f, &fields.R_f}};
+    const char* names[] = {"material.E", "material.Gf", "material.e_p", "material.e_r",
+                           "material.R_f"};
+    for (int i = 0; i < 5; ++i)
+      if (const auto& f = *props[i].first) {
+        validate_field(*f, lat, names[i]);
+        *props[i].second = evaluate_field(*f, lat);
+      }
+    BarTable table(lat, s.material, fields);
     c.warnings = table.warnings();
     SolverOptions opt;
     opt.step = s.step;
@@ -159,6 +173,20 @@ std::string resolved_case_toml(const BuiltCase& c) {
     mat.insert("R_f", *s.material.R_f);
   if (s.material.e_r)
     mat.insert("e_r", *s.material.e_r);
+  const std::pair<const char*, const std::optional<Field>*> field_of[] = {{"E", &s.fields.E},
+                                                                          {"Gf", &s.fields.Gf},
+                                                                          {"e_p", &s.fields.e_p},
+                                                                          {"e_r", &s.fields.e_r},
+                                                                          {"R_f", &s.fields.R_f}};
+  for (const auto& [name, f] : field_of)
+    if (*f)
+      mat.insert_or_assign(name, describe_field(**f)); // the field, described in words
+  const MaterialRanges& mr = sim.table().ranges();
+  mat.insert("rule", mr.rule);
+  mat.insert("E_range", toml::array{mr.E[0], mr.E[1]});
+  mat.insert("Gf_range", toml::array{mr.Gf[0], mr.Gf[1]});
+  mat.insert("e_p_range", toml::array{mr.e_p[0], mr.e_p[1]});
+  mat.insert("e_r_normal_range", toml::array{mr.e_r_normal[0], mr.e_r_normal[1]});
   root.insert("material", mat);
   toml::array sets;
   for (std::size_t i = 0; i < s.node_sets.size(); ++i) {
@@ -280,7 +308,6 @@ std::string resolved_case_toml(const BuiltCase& c) {
                           {"dt_stable", sim.stable_step().dt},
                           {"dt_stable_over_L_c", sim.stable_step().dt * c_bar / s.L},
                           {"dt_proven_bound", sim.stable_step().dt_bound},
-                          {"e_p", sim.table().family(0).e_p},
                           {"K_r_normal_min", k.kr_min_normal},
                           {"K_r_normal_max", k.kr_max_normal},
                           {"K_r_diagonal_min", k.kr_min_diag},

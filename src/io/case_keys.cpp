@@ -36,15 +36,24 @@ const std::vector<KeyDecl>& case_keys() {
     {"lattice", "plane_strain", "string", "\"none\"", "", -kInf, kInf, false, false, "\"none\", \"x\", \"y\", \"z\"", "Hold this displacement component at every node (plates one module thick)."},
 
     {"material", "law", "string", "\"bilinear\"", "", -kInf, kInf, false, false, "\"bilinear\"", "Bar law (paper eqs. 7-17)."},
-    {"material", "E", "float", "required", "Pa", 0, kInf, true, false, "", "Young's modulus."},
+    {"material", "E", "float or field", "required", "Pa", 0, kInf, true, false, "", "Young's modulus."},
     {"material", "nu", "float", "0.25", "", 0, 0.5, true, true, "", "Poisson's ratio; the lattice is isotropic only at 0.25 (other values give a warning)."},
     {"material", "rho", "float", "required", "kg/m^3", 0, kInf, true, false, "", "Density."},
-    {"material", "Gf", "float", "required", "N/m", 0, kInf, true, false, "", "Specific fracture energy."},
-    {"material", "e_p", "float", "-", "", 0, kInf, true, false, "", "Strain at peak force; give this or R_f."},
-    {"material", "R_f", "float", "-", "", 0, kInf, true, false, "", "Failure factor: e_p = R_f sqrt(Gf / (E (1 - nu^2))) (eq. 7)."},
-    {"material", "e_r", "float", "-", "", 0, kInf, true, false, "", "Strain at rupture of the normal bars; default K_r e_p with K_r from eq. 12."},
+    {"material", "Gf", "float or field", "required", "N/m", 0, kInf, true, false, "", "Specific fracture energy."},
+    {"material", "e_p", "float or field", "-", "", 0, kInf, true, false, "", "Strain at peak force; give this or R_f."},
+    {"material", "R_f", "float or field", "-", "", 0, kInf, true, false, "", "Failure factor: e_p = R_f sqrt(Gf / (E (1 - nu^2))) (eq. 7), per bar."},
+    {"material", "e_r", "float or field", "-", "", 0, kInf, true, false, "", "Strain at rupture of the normal bars; then each bar's Gf follows from eq. 11. Default: e_r = K_r e_p with K_r from eq. 12."},
     {"material", "single_ratio", "bool", "false", "", -kInf, kInf, false, false, "", "Use the paper's single A^f/A = 0.34 for both bar kinds (eq. 16)."},
     {"material", "allow_low_kr", "bool", "false", "", -kInf, kInf, false, false, "", "Run even where K_r < 1 (such bars break at e_p, brittle)."},
+
+    {"field", "type", "string", "required", "", -kInf, kInf, false, false, "\"linear\", \"table\", \"weibull\"", "A material property that varies per bar (`E = { type = ... }`), evaluated at the bar's centre; see docs/model.md for how e_p, e_r, K_r and Gf then follow."},
+    {"field", "axis", "string", "\"z\"", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "linear, table: the axis of the grading."},
+    {"field", "values", "[2 floats]", "-", "", -kInf, kInf, false, false, "", "linear: the values at the two ends `at`."},
+    {"field", "at", "[2 floats]", "the body's faces", "m", -kInf, kInf, false, false, "", "linear: the coordinates of the two ends (inside the body); constant beyond them."},
+    {"field", "points", "[[coordinate, value], ...]", "-", "m, -", -kInf, kInf, false, false, "", "table: increasing coordinates inside the body; linear between points, constant beyond."},
+    {"field", "mean", "float", "-", "", 0, kInf, true, false, "", "weibull: mean."},
+    {"field", "cv", "float", "-", "", 0, kInf, true, false, "", "weibull: coefficient of variation (shape from CV^2 = G(1+2/g)/G(1+1/g)^2 - 1, scale from the mean)."},
+    {"field", "seed", "integer", "1", "", 0, kInf, false, false, "", "weibull: seed; each bar's draw depends only on the seed and the bar's number."},
 
     {"node_set", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name used by conditions, loads and probes."},
     {"node_set", "face", "string", "-", "", -kInf, kInf, false, false, "\"x-\", \"x+\", \"y-\", \"y+\", \"z-\", \"z+\"", "The corner nodes on this face of the box."},
@@ -120,9 +129,10 @@ std::string case_format_markdown() {
                          t == "precrack" || t == "probe";
       md += fmt::format("\n## {}\n\n| key | type | default | unit | allowed | meaning |\n"
                         "|---|---|---|---|---|---|\n",
-                        t == "function" ? "function terms (`function = [{...}]`)"
-                        : array         ? "[[" + t + "]]"
-                                        : "[" + t + "]");
+                        t == "field"      ? "material fields (`E = { type = ... }`)"
+                        : t == "function" ? "function terms (`function = [{...}]`)"
+                        : array           ? "[[" + t + "]]"
+                                          : "[" + t + "]");
       last = k.table;
     }
     md += fmt::format("| `{}` | {} | {} | {} | {} | {} |\n", k.key, k.type, k.fallback, k.unit,

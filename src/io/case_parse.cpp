@@ -280,6 +280,71 @@ public:
     return TimeFunction(std::move(terms));
   }
 
+  // A property that is a number or a field table; `extent` is the body's size per axis.
+  std::optional<Field> opt_field(const toml::table& mat, const char* key,
+                                 const double extent[3]) const {
+    const toml::node* n = mat.get(key);
+    const std::string name = std::string("material.") + key;
+    if (!n || !n->is_table())
+      return std::nullopt;
+    const toml::table& t = *n->as_table();
+    const std::string w = name + ".";
+    check_known(t, "field", w);
+    Field f;
+    const std::string type = get_string(t, "field", "type", w);
+    const std::string axis = get_string(t, "field", "axis", w);
+    f.axis = axis[0] - 'x';
+    auto pairs = [&](const char* k, const char* what) {
+      const toml::node* a = t.get(k);
+      const toml::array* arr = a ? a->as_array() : nullptr;
+      if (!arr)
+        fail(a ? a : &t, w + k, fmt::format("expected {}", what));
+      return arr;
+    };
+    auto number = [&](const toml::node& e, const std::string& where) {
+      if (!e.is_number())
+        fail(&e, where, fmt::format("expected a number, got {}", describe(e)));
+      return e.is_integer() ? static_cast<double>(*e.value<std::int64_t>()) : *e.value<double>();
+    };
+    if (type == "linear") {
+      f.kind = Field::Kind::Linear;
+      const toml::array* v = pairs("values", "values = [start, end]");
+      if (v->size() != 2)
+        fail(t.get("values"), w + "values", fmt::format("expected 2 numbers, got {}", v->size()));
+      double at[2] = {0.0, extent[f.axis]};
+      if (const toml::node* a = t.get("at")) {
+        const toml::array* arr = a->as_array();
+        if (!arr || arr->size() != 2)
+          fail(a, w + "at",
+               fmt::format("expected 2 coordinates [start, end] (m), got {}", describe(*a)));
+        at[0] = number((*arr)[0], w + "at");
+        at[1] = number((*arr)[1], w + "at");
+      }
+      f.table = {{at[0], number((*v)[0], w + "values")}, {at[1], number((*v)[1], w + "values")}};
+    } else if (type == "table") {
+      f.kind = Field::Kind::Table;
+      const toml::array* pts = pairs("points", "points = [[coordinate, value], ...]");
+      for (const toml::node& p : *pts) {
+        const toml::array* pr = p.as_array();
+        if (!pr || pr->size() != 2)
+          fail(&p, w + "points", fmt::format("expected [coordinate, value], got {}", describe(p)));
+        f.table.emplace_back(number((*pr)[0], w + "points"), number((*pr)[1], w + "points"));
+      }
+    } else {
+      f.kind = Field::Kind::Weibull;
+      const std::optional<double> mean = opt_float(t, "field", "mean", w);
+      const toml::node* cv = t.get("cv");
+      if (!mean)
+        fail(&t, w + "mean", "missing: a weibull field needs mean and cv");
+      if (!cv || !cv->is_number())
+        fail(cv ? cv : &t, w + "cv", "expected the coefficient of variation, a number");
+      f.mean = *mean;
+      f.cv = number(*cv, w + "cv");
+      f.seed = static_cast<std::uint64_t>(get_int(t, "field", "seed", w));
+    }
+    return f;
+  }
+
 private:
   std::string file_;
 };
@@ -373,13 +438,27 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     r.fail(nullptr, "material", "missing required table [material]");
   r.check_known(mat, "material", "material.");
   r.get_string(mat, "material", "law", "material.");
-  c.material.E = r.get_float(mat, "material", "E", "material.");
+  const double extent[3] = {c.nx * c.L, c.ny * c.L, c.nz * c.L};
+  // A property given as a field keeps a representative value in the MaterialSpec (the mean,
+  // or the mean of the grading's values) for the checks and reports made with one number.
+  auto property = [&](const char* key, std::optional<Field>& field) -> std::optional<double> {
+    field = r.opt_field(mat, key, extent);
+    if (!field)
+      return r.opt_float(mat, "material", key, "material.");
+    if (field->kind == Field::Kind::Weibull)
+      return field->mean;
+    double sum = 0.0;
+    for (const auto& p : field->table)
+      sum += p.second;
+    return sum / static_cast<double>(field->table.size());
+  };
+  c.material.E = *property("E", c.fields.E);
   c.material.nu = r.get_float(mat, "material", "nu", "material.");
   c.material.rho = r.get_float(mat, "material", "rho", "material.");
-  c.material.Gf = r.get_float(mat, "material", "Gf", "material.");
-  c.material.e_p = r.opt_float(mat, "material", "e_p", "material.");
-  c.material.R_f = r.opt_float(mat, "material", "R_f", "material.");
-  c.material.e_r = r.opt_float(mat, "material", "e_r", "material.");
+  c.material.Gf = *property("Gf", c.fields.Gf);
+  c.material.e_p = property("e_p", c.fields.e_p);
+  c.material.R_f = property("R_f", c.fields.R_f);
+  c.material.e_r = property("e_r", c.fields.e_r);
   c.material.single_ratio = r.get_bool(mat, "material", "single_ratio", "material.");
   c.material.allow_low_kr = r.get_bool(mat, "material", "allow_low_kr", "material.");
   if (c.material.e_p.has_value() == c.material.R_f.has_value())

@@ -6,6 +6,7 @@
 #include "lattice/node_set.hpp"
 #include "lattice/precrack.hpp"
 #include "material/bar_table.hpp"
+#include "material/field.hpp"
 #include "solver/simulation.hpp"
 #include "solver/time_function.hpp"
 
@@ -69,6 +70,10 @@ struct CaseSpec {
   double L = 0.0;
   int plane_strain_axis = -1;
   MaterialSpec material;
+  // Properties given as fields (the MaterialSpec then holds a representative value).
+  struct Fields {
+    std::optional<Field> E, Gf, e_p, e_r, R_f;
+  } fields;
   std::vector<NodeSetSpec> node_sets;
   std::vector<FixedSpec> fixed;
   std::vector<VelocitySpec> velocities;

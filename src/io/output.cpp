@@ -118,6 +118,19 @@ std::string lattice_vtu(const Simulation& sim) {
   s += data_array("UInt8", "state", 1, state);
   s += data_array("Float64", "axial_force", 1, force);
   if (sim.table().per_bar()) {
+    // The material fields per bar: E, Gf (its fracture energy per fracture area, eq. 11),
+    // e_p and e_r.
+    std::vector<double> E(nb), Gf(nb);
+    for (index_t b = 0; b < nb; ++b) {
+      const BarAddress ad = lat.bar_address(b);
+      const FamilyMaterial& m = sim.table().family(static_cast<int>(ad.family));
+      const double factor = lat.area_factor(ad.family, ad.i, ad.j, ad.k);
+      const BilinearLaw law = sim.table().law(lat, b);
+      E[b] = law.EA / (m.area * factor);
+      Gf[b] = 0.5 * law.EA * law.e_p * law.e_r * law.l0 / (m.area_f * factor);
+    }
+    s += data_array("Float64", "E", 1, E);
+    s += data_array("Float64", "Gf", 1, Gf);
     s += data_array("Float64", "e_p", 1, sim.table().e_p_bar());
     s += data_array("Float64", "e_r", 1, sim.table().e_r_bar());
   }

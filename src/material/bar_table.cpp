@@ -70,11 +70,25 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
   }
 
   const std::uint64_t nb = lat.num_bars();
-  for (const auto* v : {&fields.E, &fields.Gf, &fields.e_p})
+  for (const auto* v : {&fields.E, &fields.Gf, &fields.e_p, &fields.e_r, &fields.R_f})
     if (!v->empty() && v->size() != nb)
       throw InputError(
           fmt::format("material fields: expected one value per bar ({}), got {}", nb, v->size()));
-  const bool varies = !fields.E.empty() || !fields.Gf.empty() || !fields.e_p.empty();
+  const bool varies = !fields.E.empty() || !fields.Gf.empty() || !fields.e_p.empty() ||
+                      !fields.e_r.empty() || !fields.R_f.empty();
+  const bool er_given = spec.e_r.has_value() || !fields.e_r.empty();
+  ranges_.rule = fmt::format(
+      "e_p {}; {}", spec.e_p || !fields.e_p.empty() ? "given" : "from R_f and Gf (eq. 7)",
+      er_given ? "e_r given (normal bars), Gf follows from eq. 11, diagonals' e_r by eq. 12"
+               : "K_r from eq. 12 with each bar's Gf, e_r = K_r e_p");
+  auto widen = [](double(&r)[2], double v) {
+    r[0] = std::min(r[0], v);
+    r[1] = std::max(r[1], v);
+  };
+  for (double* r : {ranges_.E, ranges_.Gf, ranges_.e_p, ranges_.e_r_normal}) {
+    r[0] = INFINITY;
+    r[1] = -INFINITY;
+  }
   DuctilitySummary& s = summary_;
   s.kr_min_normal = s.kr_min_diag = s.worst_kr = s.L_cr_min = INFINITY;
   s.kr_max_normal = s.kr_max_diag = 0.0;
@@ -90,6 +104,10 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
     }
   };
   if (!varies) {
+    widen(ranges_.E, spec.E);
+    widen(ranges_.Gf, Gf_eff);
+    widen(ranges_.e_p, e_p);
+    widen(ranges_.e_r_normal, families_[static_cast<int>(Family::EdgeX)].e_r);
     for (int f = 0; f < kFamilies; ++f) {
       const FamilyInfo& fi = lat.family(f);
       if (fi.count() == 0)
@@ -111,17 +129,38 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
       const FamilyMaterial& m = families_[static_cast<int>(a.family)];
       const BarKind kind = lat.family(a.family).kind;
       const double E = fields.E.empty() ? spec.E : fields.E[b];
-      const double Gf = fields.Gf.empty() ? spec.Gf : fields.Gf[b];
-      const double ep = fields.e_p.empty() ? e_p : fields.e_p[b];
-      if (!(E > 0 && Gf > 0 && ep > 0))
+      const double Gf_in = fields.Gf.empty() ? spec.Gf : fields.Gf[b];
+      double ep = e_p;
+      if (!fields.e_p.empty())
+        ep = fields.e_p[b];
+      else if (!spec.e_p)
+        ep = failure_strain(fields.R_f.empty() ? *spec.R_f : fields.R_f[b], Gf_in, E, spec.nu);
+      if (!(E > 0 && Gf_in > 0 && ep > 0))
         throw InputError(fmt::format("material fields: bar {} has E = {:g}, Gf = {:g}, e_p = {:g}; "
                                      "expected all positive",
-                                     b, E, Gf, ep));
+                                     b, E, Gf_in, ep));
       const double ratio = kind == BarKind::Normal ? ratio_n : ratio_d;
       k_[b] = E * m.area / m.l0 * lat.area_factor(a.family, a.i, a.j, a.k);
       e_p_[b] = ep;
-      e_r_[b] = spec.e_r ? *spec.e_r * (kind == BarKind::Normal ? 1.0 : er_scale_d)
-                         : ductility(Gf, E, ep, ratio, m.l0) * ep;
+      double Gf = Gf_in;
+      if (er_given) {
+        const double er_n = fields.e_r.empty() ? *spec.e_r : fields.e_r[b];
+        if (!(er_n > ep))
+          throw InputError(fmt::format("material: bar {} has e_r = {:g} <= e_p = {:g}; expected "
+                                       "e_r > e_p",
+                                       b, er_n, ep));
+        e_r_[b] = er_n * (kind == BarKind::Normal ? 1.0 : er_scale_d);
+        Gf = (er_n / ep) * E * ep * ep * l_n / (2.0 * ratio_n); // eq. 11 for a normal bar
+        if (kind == BarKind::Normal)
+          widen(ranges_.e_r_normal, er_n);
+      } else {
+        e_r_[b] = ductility(Gf, E, ep, ratio, m.l0) * ep;
+        if (kind == BarKind::Normal)
+          widen(ranges_.e_r_normal, e_r_[b]);
+      }
+      widen(ranges_.E, E);
+      widen(ranges_.Gf, Gf);
+      widen(ranges_.e_p, ep);
       const double kr = e_r_[b] / ep;
       account(b, kind, kr, critical_length(Gf, E, ep, ratio_n));
       if (kr < 1.0)

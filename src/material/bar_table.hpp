@@ -30,10 +30,25 @@ struct MaterialSpec {
 };
 
 // Optional per-bar values (one entry per bar, or empty for "uniform").
+// How the quantities that depend on each other follow when some vary per bar:
+// - e_p given (field or value) or else from R_f (value or field) by eq. 7 with the bar's Gf
+//   and E;
+// - e_r given (field or value, the normal bars'): kept, and the bar's Gf follows from eq. 11
+//   (Gf = K_r E e_p^2 (A / A^f) l0 / 2, K_r = e_r / e_p), the diagonals' e_r scaled so both
+//   kinds keep eq. 12 with that Gf (the paper's graded case);
+// - e_r not given: K_r from eq. 12 with the bar's Gf, E and e_p, and e_r = K_r e_p.
 struct BarFields {
   std::vector<double> E;   // Young's modulus
   std::vector<double> Gf;  // fracture energy
   std::vector<double> e_p; // peak strain
+  std::vector<double> e_r; // rupture strain of a normal bar
+  std::vector<double> R_f; // failure factor (eq. 7), used where e_p is not given
+};
+
+// The per-bar ranges that result, for the resolved case file.
+struct MaterialRanges {
+  double E[2], Gf[2], e_p[2], e_r_normal[2];
+  std::string rule;
 };
 
 struct FamilyMaterial {
@@ -70,6 +85,7 @@ public:
   BilinearLaw law(const Lattice& lattice, index_t bar) const;
   double area_ratio(BarKind kind) const; // A^f / A
   const DuctilitySummary& ductility_summary() const { return summary_; }
+  const MaterialRanges& ranges() const { return ranges_; }
   // Things the user should know that do not stop the run (nu != 0.25, allowed K_r < 1).
   const std::vector<std::string>& warnings() const { return warnings_; }
   double node_mass_density() const { return spec_.rho; }
@@ -79,6 +95,7 @@ private:
   std::array<FamilyMaterial, kFamilies> families_{};
   std::vector<double> k_, e_p_, e_r_;
   DuctilitySummary summary_;
+  MaterialRanges ranges_{};
   std::vector<std::string> warnings_;
 };
 

@@ -1,10 +1,10 @@
 #include "material/field.hpp"
 
+#include "util/error.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
-
-#include "util/error.hpp"
 
 namespace ldem {
 
@@ -40,7 +40,9 @@ double weibull_shape(double cv) {
   return std::sqrt(lo * hi);
 }
 
-double weibull_scale(double mean, double shape) { return mean / std::tgamma(1.0 + 1.0 / shape); }
+double weibull_scale(double mean, double shape) {
+  return mean / std::tgamma(1.0 + 1.0 / shape);
+}
 
 double counter_uniform(std::uint64_t seed, std::uint64_t index) {
   const std::uint64_t r = mix(mix(seed) ^ mix(index + 0x632BE59BD9B4E019ull));

@@ -4,12 +4,12 @@
 // so the result does not depend on threads or on how the lattice is split.
 #pragma once
 
+#include "lattice/lattice.hpp"
+
 #include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include "lattice/lattice.hpp"
 
 namespace ldem {
 
