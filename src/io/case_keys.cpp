@@ -53,7 +53,9 @@ const std::vector<KeyDecl>& case_keys() {
     {"field", "points", "[[coordinate, value], ...]", "-", "m, -", -kInf, kInf, false, false, "", "table: increasing coordinates inside the body; linear between points, constant beyond."},
     {"field", "mean", "float", "-", "", 0, kInf, true, false, "", "weibull: mean."},
     {"field", "cv", "float", "-", "", 0, kInf, true, false, "", "weibull: coefficient of variation (shape from CV^2 = G(1+2/g)/G(1+1/g)^2 - 1, scale from the mean)."},
-    {"field", "seed", "integer", "1", "", 0, kInf, false, false, "", "weibull: seed; each bar's draw depends only on the seed and the bar's number."},
+    {"field", "seed", "integer", "1", "", 0, kInf, false, false, "", "weibull: seed; the field depends only on the seed and the bar's number (or position, when correlated)."},
+    {"field", "correlation_length", "float", "0", "m", 0, kInf, false, false, "", "weibull: 0 draws each bar independently (correlation of the order of L); a length > 0 makes a Gaussian field with that correlation length, independent of L, mapped to the Weibull marginal."},
+    {"field", "covariance", "string", "\"exponential\"", "", -kInf, kInf, false, false, "\"exponential\", \"squared_exponential\"", "weibull with correlation_length > 0: exp(-r / l) or exp(-(r / l)^2)."},
 
     {"node_set", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name used by conditions, loads and probes."},
     {"node_set", "face", "string", "-", "", -kInf, kInf, false, false, "\"x-\", \"x+\", \"y-\", \"y+\", \"z-\", \"z+\"", "The corner nodes on this face of the box."},

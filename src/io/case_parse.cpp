@@ -341,6 +341,10 @@ public:
       f.mean = *mean;
       f.cv = number(*cv, w + "cv");
       f.seed = static_cast<std::uint64_t>(get_int(t, "field", "seed", w));
+      f.correlation_length = get_float(t, "field", "correlation_length", w);
+      f.covariance = get_string(t, "field", "covariance", w) == "exponential"
+                         ? Field::Covariance::Exponential
+                         : Field::Covariance::SquaredExponential;
     }
     return f;
   }

@@ -4,7 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
+#include <fftw3.h>
 #include <fmt/format.h>
+#include <numbers>
 
 namespace ldem {
 
@@ -74,6 +77,19 @@ void validate_field(const Field& f, const Lattice& lat, const std::string& what)
   case Field::Kind::Weibull:
     if (!(f.mean > 0.0))
       throw InputError(fmt::format("{}: Weibull mean must be positive, got {:g}", what, f.mean));
+    if (f.correlation_length < 0.0 || !std::isfinite(f.correlation_length))
+      throw InputError(fmt::format("{}: correlation_length must be >= 0 m, got {:g}", what,
+                                   f.correlation_length));
+    if (f.correlation_length > 0.0) {
+      const double cells = (lat.nx() * lat.L() / f.correlation_length * 8.0 + 25.0) *
+                           (lat.ny() * lat.L() / f.correlation_length * 8.0 + 25.0) *
+                           (lat.nz() * lat.L() / f.correlation_length * 8.0 + 25.0);
+      if (cells > 2e8)
+        throw InputError(fmt::format("{}: correlation_length {:g} m needs a grid of {:.3g} "
+                                     "points for this body; the limit is 2e8 (use a longer "
+                                     "correlation length)",
+                                     what, f.correlation_length, cells));
+    }
     try {
       weibull_shape(f.cv);
     } catch (const InputError& e) {
@@ -103,6 +119,13 @@ std::vector<double> evaluate_field(const Field& f, const Lattice& lat) {
         v[b] = y0 + (y1 - y0) * (x - x0) / (x1 - x0);
       }
     }
+  } else if (f.kind == Field::Kind::Weibull && f.correlation_length > 0.0) {
+    const double g = weibull_shape(f.cv), scale = weibull_scale(f.mean, g);
+    v = correlated_gaussian(lat, f.correlation_length, f.covariance, f.seed);
+    for (double& x : v) {
+      const double u = std::clamp(0.5 * std::erfc(-x / std::numbers::sqrt2), 1e-300, 1.0 - 1e-16);
+      x = scale * std::pow(-std::log1p(-u), 1.0 / g);
+    }
   } else if (f.kind == Field::Kind::Weibull) {
     const double g = weibull_shape(f.cv), scale = weibull_scale(f.mean, g);
 #pragma omp parallel for schedule(static) if (nb > 20000)
@@ -111,6 +134,66 @@ std::vector<double> evaluate_field(const Field& f, const Lattice& lat) {
       v[static_cast<std::size_t>(b)] = scale * std::pow(-std::log1p(-u), 1.0 / g);
     }
   }
+  return v;
+}
+
+std::vector<double> correlated_gaussian(const Lattice& lat, double ell,
+                                        Field::Covariance covariance, std::uint64_t seed) {
+  const double h = ell / 8.0;
+  const double ext[3] = {lat.nx() * lat.L(), lat.ny() * lat.L(), lat.nz() * lat.L()};
+  int n[3];
+  for (int a = 0; a < 3; ++a) {
+    n[a] = static_cast<int>(std::ceil((ext[a] + 3.0 * ell) / h)) + 1;
+    n[a] += n[a] % 2; // even sizes
+  }
+  const std::size_t total = std::size_t(n[0]) * n[1] * n[2];
+  const int nzc = n[2] / 2 + 1; // complex points along the last axis (r2c)
+  const std::size_t ctotal = std::size_t(n[0]) * n[1] * nzc;
+  double* real = fftw_alloc_real(total);
+  fftw_complex* spec = fftw_alloc_complex(ctotal);
+  fftw_complex* noise = fftw_alloc_complex(ctotal);
+  // Covariance on the periodic grid (minimum-image distance); index (i, j, k), k fastest.
+  for (int i = 0; i < n[0]; ++i)
+    for (int j = 0; j < n[1]; ++j)
+      for (int k = 0; k < n[2]; ++k) {
+        const double dx = std::min(i, n[0] - i) * h, dy = std::min(j, n[1] - j) * h,
+                     dz = std::min(k, n[2] - k) * h;
+        const double r = std::sqrt(dx * dx + dy * dy + dz * dz) / ell;
+        real[(std::size_t(i) * n[1] + j) * n[2] + k] =
+            covariance == Field::Covariance::Exponential ? std::exp(-r) : std::exp(-r * r);
+      }
+  fftw_plan fwd_c = fftw_plan_dft_r2c_3d(n[0], n[1], n[2], real, spec, FFTW_ESTIMATE);
+  fftw_execute(fwd_c);
+  fftw_destroy_plan(fwd_c);
+  // White noise N(0, 1) per grid point (Box-Muller on the counter-based uniforms).
+  for (std::size_t p = 0; p < total; ++p) {
+    const double u1 = counter_uniform(seed, 2 * p), u2 = counter_uniform(seed, 2 * p + 1);
+    real[p] = std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
+  }
+  fftw_plan fwd_w = fftw_plan_dft_r2c_3d(n[0], n[1], n[2], real, noise, FFTW_ESTIMATE);
+  fftw_execute(fwd_w);
+  fftw_destroy_plan(fwd_w);
+  // X = F^-1 sqrt(eigenvalues of the circulant covariance) F W; FFTW's inverse is unnormalised.
+  for (std::size_t p = 0; p < ctotal; ++p) {
+    const double lam = std::max(spec[p][0], 0.0);
+    const double s = std::sqrt(lam) / static_cast<double>(total);
+    noise[p][0] *= s;
+    noise[p][1] *= s;
+  }
+  fftw_plan inv = fftw_plan_dft_c2r_3d(n[0], n[1], n[2], noise, real, FFTW_ESTIMATE);
+  fftw_execute(inv);
+  fftw_destroy_plan(inv);
+  std::vector<double> v(lat.num_bars());
+  for (index_t b = 0; b < lat.num_bars(); ++b) {
+    const Vec3 c = lat.bar_centre(b);
+    const auto at = [&](double x, int a) {
+      return std::clamp(static_cast<int>(std::lround(x / h)), 0, n[a] - 1);
+    };
+    v[b] = real[(std::size_t(at(c.x, 0)) * n[1] + at(c.y, 1)) * n[2] + at(c.z, 2)];
+  }
+  fftw_free(real);
+  fftw_free(spec);
+  fftw_free(noise);
   return v;
 }
 
@@ -128,8 +211,14 @@ std::string describe_field(const Field& f) {
   }
   case Field::Kind::Weibull: {
     const double g = weibull_shape(f.cv);
-    return fmt::format("Weibull: mean {:g}, cv {:g} (shape {:.4g}, scale {:.6g}), seed {}", f.mean,
-                       f.cv, g, weibull_scale(f.mean, g), f.seed);
+    return fmt::format("Weibull: mean {:g}, cv {:g} (shape {:.4g}, scale {:.6g}), seed {}{}",
+                       f.mean, f.cv, g, weibull_scale(f.mean, g), f.seed,
+                       f.correlation_length > 0
+                           ? fmt::format(", correlated over {:g} m ({})", f.correlation_length,
+                                         f.covariance == Field::Covariance::Exponential
+                                             ? "exponential"
+                                             : "squared exponential")
+                           : std::string(", independent per bar"));
   }
   }
   return "";

@@ -20,8 +20,15 @@ struct Field {
   std::vector<std::pair<double, double>> table; // Linear (2 points), Table: (coordinate, value)
   double mean = 0.0, cv = 0.0;                  // Weibull
   std::uint64_t seed = 1;                       // Weibull
+  // Weibull with correlation_length > 0: a spatially correlated field (see below).
+  double correlation_length = 0.0;
+  enum class Covariance { Exponential, SquaredExponential } covariance = Covariance::Exponential;
 
-  static Field constant(double v) { return {Kind::Constant, v, 2, {}, 0, 0, 1}; }
+  static Field constant(double v) {
+    Field f;
+    f.value = v;
+    return f;
+  }
   bool varies() const { return kind != Kind::Constant; }
 };
 
@@ -40,6 +47,16 @@ double weibull_scale(double mean, double shape);
 // A uniform number in (0, 1) from (seed, index) alone: a counter-based generator, so that
 // bar b's draw is the same whatever the order or the thread that computes it.
 double counter_uniform(std::uint64_t seed, std::uint64_t index);
+
+// A stationary Gaussian field of zero mean and unit variance with covariance
+// exp(-r / l) (exponential) or exp(-(r / l)^2) (squared exponential), l the correlation length,
+// made by circulant embedding on a periodic grid of spacing l / 8 that covers the body plus
+// 3 l of padding per axis (FFT, FFTW), and taken at each bar's centre (nearest grid point, so
+// the marginal stays exactly standard normal). The grid depends on the body and l, not on L:
+// a coarse and a fine lattice of the same body get the same physical field. A correlated
+// Weibull field maps it through the normal CDF to the Weibull marginal.
+std::vector<double> correlated_gaussian(const Lattice& lattice, double correlation_length,
+                                        Field::Covariance covariance, std::uint64_t seed);
 
 std::string describe_field(const Field& f);
 
