@@ -65,6 +65,12 @@ if [ $rc -eq 130 ] && grep -q '"interrupted": true' "$T/int/summary.json" && ! l
   [ "$(head -1 "$T/int/energy.csv")" = "time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,balance_error" ] &&
   [ "$(wc -l <"$T/int/energy.csv")" -gt 2 ]; then ok; else bad "Ctrl-C: rc $rc, $(ls "$T/int" | tr '\n' ' ')"; fi
 
+# A heterogeneous material: fields.csv and fields.png, and the per-bar fields in the VTU.
+sed 's/^Gf = 10.0 .*/Gf = { type = "weibull", mean = 10.0, cv = 0.1, seed = 3 }/; s/^end = 4.0e-3/end = 2.0e-4/' "$GOOD" >"$T/weibull.toml"
+if "$LDEM" run "$T/weibull.toml" --out "$T/weibull" >/dev/null 2>"$T/stderr" && [ -s "$T/weibull/fields.png" ] &&
+  [ "$(head -1 "$T/weibull/fields.csv")" = "bar,x,y,z,E,Gf,e_p,e_r" ] &&
+  grep -q 'Name="Gf"' "$T/weibull/lattice_000000.vtu"; then ok; else bad "Weibull fields: $(cat "$T/stderr")"; fi
+
 # Every shipped case is valid.
 while IFS= read -r c; do
   "$LDEM" check "$c" >/dev/null 2>"$T/stderr" && ok || bad "ldem check $c: $(cat "$T/stderr")"

@@ -178,9 +178,25 @@ std::string resolved_case_toml(const BuiltCase& c) {
                                                                           {"e_p", &s.fields.e_p},
                                                                           {"e_r", &s.fields.e_r},
                                                                           {"R_f", &s.fields.R_f}};
+  toml::table fields_table;
   for (const auto& [name, f] : field_of)
-    if (*f)
+    if (*f) {
       mat.insert_or_assign(name, describe_field(**f)); // the field, described in words
+      if ((*f)->kind == Field::Kind::Weibull) {
+        const double g = weibull_shape((*f)->cv);
+        fields_table.insert(name, toml::table{{"kind", "weibull"},
+                                              {"mean", (*f)->mean},
+                                              {"cv", (*f)->cv},
+                                              {"shape", g},
+                                              {"scale", weibull_scale((*f)->mean, g)},
+                                              {"correlation_length", (*f)->correlation_length}});
+      } else {
+        fields_table.insert(
+            name, toml::table{{"kind", (*f)->kind == Field::Kind::Linear ? "linear" : "table"}});
+      }
+    }
+  if (!fields_table.empty())
+    root.insert("fields", fields_table);
   const MaterialRanges& mr = sim.table().ranges();
   mat.insert("rule", mr.rule);
   mat.insert("E_range", toml::array{mr.E[0], mr.E[1]});
@@ -407,6 +423,31 @@ int run_command(const std::string& path, const RunOptions& o) {
   const std::string dir = o.out_dir + "/";
   write_file(dir + "case.resolved.toml", resolved_case_toml(c));
 
+  if (sim.table().per_bar()) {
+    // The material fields per bar (every bar up to 2 million, else a regular sample), for
+    // fields.png and for the user's own statistics.
+    const index_t stride = std::max<index_t>(1, lat.num_bars() / 2000000 + 1);
+    OutputFile fields(dir + "fields.csv");
+    fields.write("bar,x,y,z,E,Gf,e_p,e_r\n");
+    std::string rows;
+    for (index_t b = 0; b < lat.num_bars(); b += stride) {
+      const BarAddress ad = lat.bar_address(b);
+      const FamilyMaterial& m = sim.table().family(static_cast<int>(ad.family));
+      const double factor = lat.area_factor(ad.family, ad.i, ad.j, ad.k);
+      const BilinearLaw law = sim.table().law(lat, b);
+      const Vec3 mid = lat.bar_centre(b);
+      rows += fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", b, mid.x, mid.y,
+                          mid.z, law.EA / (m.area * factor),
+                          0.5 * law.EA * law.e_p * law.e_r * law.l0 / (m.area_f * factor), law.e_p,
+                          law.e_r);
+      if (rows.size() > (1u << 20)) {
+        fields.write(rows);
+        rows.clear();
+      }
+    }
+    fields.write(rows);
+    fields.commit();
+  }
   const auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / sim.dt() - 1e-9));
   const std::uint64_t every =
       s.output.energy_every ? s.output.energy_every : std::max<std::uint64_t>(1, steps / 500);

@@ -1,11 +1,14 @@
 #!/usr/bin/env python3
-"""Pictures of an ldem output folder: crack.png and energy.png.
+"""Pictures of an ldem output folder: crack.png, energy.png and, for heterogeneous materials,
+fields.png.
 
 usage: ldem_plot.py DIR   (run by `ldem run` at the end, or `ldem plot DIR`)
 
 crack.png: the bars that softened (grey) and broke (black) during the run, drawn at their
 centres on the body seen face on (the plane of its two largest extents), with the pre-cracks
-in red; energy.png: every term of the energy balance against time, and the balance error.
+in red; energy.png: every term of the energy balance against time, and the balance error; fields.png: for each property that varies, its histogram over
+the bars (with the target Weibull density for random fields) and its map over the body seen
+face on.
 """
 import csv
 import os
@@ -93,6 +96,47 @@ def energy_png(d):
     save(fig, os.path.join(d, "energy.png"))
 
 
+def fields_png(d, case):
+    path = os.path.join(d, "fields.csv")
+    if not os.path.isfile(path):
+        return
+    import math
+    rows = read_csv(path)
+    props = [p for p in ["E", "Gf", "e_p", "e_r"]
+             if len({r[p] for r in rows[:5000]}) > 1 or p in case.get("fields", {})]
+    if not props:
+        return
+    n = case["lattice"]["modules"]
+    L = case["lattice"]["L"]
+    ext = [n[i] * L for i in range(3)]
+    a, b = sorted(sorted(range(3), key=lambda i: -ext[i])[:2])
+    fig, axes = plt.subplots(len(props), 2, figsize=(10, 3.6 * len(props)), squeeze=False)
+    units = {"E": "Pa", "Gf": "N/m", "e_p": "", "e_r": "(normal and diagonal bars)"}
+    for row_axes, p in zip(axes, props):
+        vals = [float(r[p]) for r in rows]
+        h = row_axes[0]
+        h.hist(vals, bins=60, density=True, color="0.6", label="bars")
+        spec = case.get("fields", {}).get(p)
+        if spec and spec.get("kind") == "weibull":
+            g, lam = spec["shape"], spec["scale"]
+            lo, hi = min(vals), max(vals)
+            xs = [lo + (hi - lo) * i / 200 for i in range(201)]
+            ys = [g / lam * (x / lam) ** (g - 1) * math.exp(-((x / lam) ** g)) for x in xs]
+            h.plot(xs, ys, "r-", lw=1.2, label=f"Weibull target (shape {g:.3g})")
+            h.legend(fontsize=8)
+        h.set_xlabel(f"{p} {units[p]}")
+        h.set_ylabel("density")
+        m = row_axes[1]
+        sc = m.scatter([float(r["xyz"[a]]) * 1e3 for r in rows],
+                       [float(r["xyz"[b]]) * 1e3 for r in rows], c=vals, s=2, lw=0, cmap="viridis")
+        fig.colorbar(sc, ax=m, label=p)
+        m.set_aspect("equal")
+        m.set_xlabel(f"{'xyz'[a]} [mm]")
+        m.set_ylabel(f"{'xyz'[b]} [mm]")
+    fig.suptitle("material fields per bar", fontsize=11)
+    save(fig, os.path.join(d, "fields.png"))
+
+
 def main():
     if len(sys.argv) != 2:
         sys.exit(__doc__)
@@ -101,6 +145,7 @@ def main():
         case = tomllib.load(f)
     crack_png(d, case)
     energy_png(d)
+    fields_png(d, case)
 
 
 if __name__ == "__main__":
