@@ -1,5 +1,6 @@
 // Property fields: gradings and Weibull random fields.
 #include "material/field.hpp"
+#include "solver/simulation.hpp"
 #include "util/error.hpp"
 
 #include <algorithm>
@@ -152,7 +153,10 @@ namespace {
 double correlation_at_length(Field::Covariance cov) {
   const Lattice lat(240, 1, 240, 1.0);
   const double ell = 6.0;
-  const std::vector<double> z = correlated_gaussian(lat, ell, cov, 5);
+  std::vector<Vec3> centres(lat.num_bars());
+  for (index_t b = 0; b < lat.num_bars(); ++b)
+    centres[b] = lat.bar_centre(b);
+  const std::vector<double> z = correlated_gaussian(lat, centres, ell, cov, 5);
   double s = 0.0, s2 = 0.0, sab = 0.0;
   std::size_t n = 0;
   for (int f = 0; f < kFamilies; ++f) {
@@ -213,6 +217,40 @@ TEST(CorrelatedField, SameFieldForCoarseAndFineLattices) {
   }
   const double n = static_cast<double>(b.size()), mean = s / n;
   EXPECT_GT(std::sqrt(s2 / n - mean * mean) / mean, 0.01);
+}
+
+} // namespace
+} // namespace ldem
+
+namespace ldem {
+namespace {
+
+// A density field is lumped module by module: the total mass is the sum over modules of
+// rho(module centre) L^3; for a linear grading the module centres are symmetric about the
+// middle, so the total is the mean density times the volume.
+TEST(Field, DensityFieldKeepsTheMassOfEveryModule) {
+  const double L = 0.01;
+  const Lattice lat(6, 2, 10, L);
+  Field rho;
+  rho.kind = Field::Kind::Linear;
+  rho.axis = 2;
+  rho.table = {{0.0, 1000.0}, {10 * L, 3000.0}};
+  BarFields fields;
+  fields.rho = evaluate_field_modules(rho, lat);
+  MaterialSpec m;
+  m.E = 30e9;
+  m.rho = 2000.0;
+  m.Gf = 100.0;
+  m.e_p = 1e-4;
+  Simulation sim(lat, BarTable(lat, m, fields), {}, {});
+  double total = 0.0;
+  for (index_t n = 0; n < lat.num_nodes(); ++n)
+    total += sim.mass(n);
+  EXPECT_NEAR(total / (2000.0 * lat.volume()), 1.0, 1e-12);
+  // The top module layer is 2.9 times as dense as the bottom one (centres at z = 0.5 L and
+  // 9.5 L: 1100 and 2900 kg/m^3): its centre nodes carry 2900 / 1100 the mass.
+  EXPECT_NEAR(sim.mass(lat.centre(0, 0, 9)) / sim.mass(lat.centre(0, 0, 0)), 2900.0 / 1100.0,
+              1e-12);
 }
 
 } // namespace

@@ -130,6 +130,10 @@ BuiltCase build_case(const std::string& path) {
         validate_field(*f, lat, names[i]);
         *props[i].second = evaluate_field(*f, lat);
       }
+    if (s.fields.rho) {
+      validate_field(*s.fields.rho, lat, "material.rho");
+      fields.rho = evaluate_field_modules(*s.fields.rho, lat);
+    }
     BarTable table(lat, s.material, fields);
     c.warnings = table.warnings();
     SolverOptions opt;
@@ -173,11 +177,9 @@ std::string resolved_case_toml(const BuiltCase& c) {
     mat.insert("R_f", *s.material.R_f);
   if (s.material.e_r)
     mat.insert("e_r", *s.material.e_r);
-  const std::pair<const char*, const std::optional<Field>*> field_of[] = {{"E", &s.fields.E},
-                                                                          {"Gf", &s.fields.Gf},
-                                                                          {"e_p", &s.fields.e_p},
-                                                                          {"e_r", &s.fields.e_r},
-                                                                          {"R_f", &s.fields.R_f}};
+  const std::pair<const char*, const std::optional<Field>*> field_of[] = {
+      {"E", &s.fields.E},     {"Gf", &s.fields.Gf},   {"e_p", &s.fields.e_p},
+      {"e_r", &s.fields.e_r}, {"R_f", &s.fields.R_f}, {"rho", &s.fields.rho}};
   toml::table fields_table;
   for (const auto& [name, f] : field_of)
     if (*f) {

@@ -38,7 +38,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"material", "law", "string", "\"bilinear\"", "", -kInf, kInf, false, false, "\"bilinear\"", "Bar law (paper eqs. 7-17)."},
     {"material", "E", "float or field", "required", "Pa", 0, kInf, true, false, "", "Young's modulus."},
     {"material", "nu", "float", "0.25", "", 0, 0.5, true, true, "", "Poisson's ratio; the lattice is isotropic only at 0.25 (other values give a warning)."},
-    {"material", "rho", "float", "required", "kg/m^3", 0, kInf, true, false, "", "Density."},
+    {"material", "rho", "float or field", "required", "kg/m^3", 0, kInf, true, false, "", "Density; as a field it is taken at module centres and lumped module by module."},
     {"material", "Gf", "float or field", "required", "N/m", 0, kInf, true, false, "", "Specific fracture energy."},
     {"material", "e_p", "float or field", "-", "", 0, kInf, true, false, "", "Strain at peak force; give this or R_f."},
     {"material", "R_f", "float or field", "-", "", 0, kInf, true, false, "", "Failure factor: e_p = R_f sqrt(Gf / (E (1 - nu^2))) (eq. 7), per bar."},

@@ -458,7 +458,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   };
   c.material.E = *property("E", c.fields.E);
   c.material.nu = r.get_float(mat, "material", "nu", "material.");
-  c.material.rho = r.get_float(mat, "material", "rho", "material.");
+  c.material.rho = *property("rho", c.fields.rho);
   c.material.Gf = *property("Gf", c.fields.Gf);
   c.material.e_p = property("e_p", c.fields.e_p);
   c.material.R_f = property("R_f", c.fields.R_f);

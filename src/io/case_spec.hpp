@@ -72,7 +72,7 @@ struct CaseSpec {
   MaterialSpec material;
   // Properties given as fields (the MaterialSpec then holds a representative value).
   struct Fields {
-    std::optional<Field> E, Gf, e_p, e_r, R_f;
+    std::optional<Field> E, Gf, e_p, e_r, R_f, rho;
   } fields;
   std::vector<NodeSetSpec> node_sets;
   std::vector<FixedSpec> fixed;

@@ -70,6 +70,17 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
   }
 
   const std::uint64_t nb = lat.num_bars();
+  if (!fields.rho.empty()) {
+    if (fields.rho.size() != lat.num_modules())
+      throw InputError(fmt::format("material fields: expected one density per module ({}), got {}",
+                                   lat.num_modules(), fields.rho.size()));
+    for (double r : fields.rho)
+      if (!(r > 0.0) || !std::isfinite(r))
+        throw InputError(fmt::format("material.rho: the field gives a density {:g}; expected "
+                                     "positive values",
+                                     r));
+    rho_ = fields.rho;
+  }
   for (const auto* v : {&fields.E, &fields.Gf, &fields.e_p, &fields.e_r, &fields.R_f})
     if (!v->empty() && v->size() != nb)
       throw InputError(

@@ -43,6 +43,7 @@ struct BarFields {
   std::vector<double> e_p; // peak strain
   std::vector<double> e_r; // rupture strain of a normal bar
   std::vector<double> R_f; // failure factor (eq. 7), used where e_p is not given
+  std::vector<double> rho; // density per module (not per bar): the lumped masses follow
 };
 
 // The per-bar ranges that result, for the resolved case file.
@@ -81,6 +82,8 @@ public:
   const std::vector<double>& k_bar() const { return k_; }
   const std::vector<double>& e_p_bar() const { return e_p_; }
   const std::vector<double>& e_r_bar() const { return e_r_; }
+  // Density per module, or empty (uniform spec().rho).
+  const std::vector<double>& rho_module() const { return rho_; }
 
   BilinearLaw law(const Lattice& lattice, index_t bar) const;
   double area_ratio(BarKind kind) const; // A^f / A
@@ -93,7 +96,7 @@ public:
 private:
   MaterialSpec spec_;
   std::array<FamilyMaterial, kFamilies> families_{};
-  std::vector<double> k_, e_p_, e_r_;
+  std::vector<double> k_, e_p_, e_r_, rho_;
   DuctilitySummary summary_;
   MaterialRanges ranges_{};
   std::vector<std::string> warnings_;

@@ -99,13 +99,17 @@ void validate_field(const Field& f, const Lattice& lat, const std::string& what)
   }
 }
 
-std::vector<double> evaluate_field(const Field& f, const Lattice& lat) {
-  const index_t nb = lat.num_bars();
+namespace {
+
+// The field at n points: position(i) gives point i, and i numbers the random draws.
+template <class Position>
+std::vector<double> evaluate_at(const Field& f, const Lattice& lat, index_t nb, Position&& position,
+                                std::uint64_t stream) {
   std::vector<double> v(nb, f.value);
   if (f.kind == Field::Kind::Linear || f.kind == Field::Kind::Table) {
     const auto& t = f.table;
     for (index_t b = 0; b < nb; ++b) {
-      const double x = lat.bar_centre(b)[f.axis];
+      const double x = position(b)[f.axis];
       // Constant beyond the first and last points; linear between neighbours.
       if (x <= t.front().first) {
         v[b] = t.front().second;
@@ -121,7 +125,10 @@ std::vector<double> evaluate_field(const Field& f, const Lattice& lat) {
     }
   } else if (f.kind == Field::Kind::Weibull && f.correlation_length > 0.0) {
     const double g = weibull_shape(f.cv), scale = weibull_scale(f.mean, g);
-    v = correlated_gaussian(lat, f.correlation_length, f.covariance, f.seed);
+    std::vector<Vec3> points(nb);
+    for (index_t b = 0; b < nb; ++b)
+      points[b] = position(b);
+    v = correlated_gaussian(lat, points, f.correlation_length, f.covariance, f.seed);
     for (double& x : v) {
       const double u = std::clamp(0.5 * std::erfc(-x / std::numbers::sqrt2), 1e-300, 1.0 - 1e-16);
       x = scale * std::pow(-std::log1p(-u), 1.0 / g);
@@ -130,15 +137,30 @@ std::vector<double> evaluate_field(const Field& f, const Lattice& lat) {
     const double g = weibull_shape(f.cv), scale = weibull_scale(f.mean, g);
 #pragma omp parallel for schedule(static) if (nb > 20000)
     for (std::int64_t b = 0; b < static_cast<std::int64_t>(nb); ++b) {
-      const double u = counter_uniform(f.seed, static_cast<std::uint64_t>(b));
+      const double u = counter_uniform(f.seed ^ stream, static_cast<std::uint64_t>(b));
       v[static_cast<std::size_t>(b)] = scale * std::pow(-std::log1p(-u), 1.0 / g);
     }
   }
   return v;
 }
 
-std::vector<double> correlated_gaussian(const Lattice& lat, double ell,
-                                        Field::Covariance covariance, std::uint64_t seed) {
+} // namespace
+
+std::vector<double> evaluate_field(const Field& f, const Lattice& lat) {
+  return evaluate_at(
+      f, lat, lat.num_bars(), [&](index_t b) { return lat.bar_centre(b); }, 0);
+}
+
+std::vector<double> evaluate_field_modules(const Field& f, const Lattice& lat) {
+  const auto nm = static_cast<index_t>(lat.num_modules());
+  // Module draws use their own stream, so that a density field is not the toughness field.
+  return evaluate_at(
+      f, lat, nm, [&](index_t m) { return lat.position(lat.num_corners() + m); }, 0x5DEECE66Dull);
+}
+
+std::vector<double> correlated_gaussian(const Lattice& lat, const std::vector<Vec3>& points,
+                                        double ell, Field::Covariance covariance,
+                                        std::uint64_t seed) {
   const double h = ell / 8.0;
   const double ext[3] = {lat.nx() * lat.L(), lat.ny() * lat.L(), lat.nz() * lat.L()};
   int n[3];
@@ -183,9 +205,9 @@ std::vector<double> correlated_gaussian(const Lattice& lat, double ell,
   fftw_plan inv = fftw_plan_dft_c2r_3d(n[0], n[1], n[2], noise, real, FFTW_ESTIMATE);
   fftw_execute(inv);
   fftw_destroy_plan(inv);
-  std::vector<double> v(lat.num_bars());
-  for (index_t b = 0; b < lat.num_bars(); ++b) {
-    const Vec3 c = lat.bar_centre(b);
+  std::vector<double> v(points.size());
+  for (std::size_t b = 0; b < points.size(); ++b) {
+    const Vec3 c = points[b];
     const auto at = [&](double x, int a) {
       return std::clamp(static_cast<int>(std::lround(x / h)), 0, n[a] - 1);
     };

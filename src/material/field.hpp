@@ -36,8 +36,10 @@ struct Field {
 // Weibull CV must admit a shape) and throws InputError naming `what` otherwise.
 void validate_field(const Field& f, const Lattice& lattice, const std::string& what);
 
-// The field's value for every bar of the lattice.
+// The field's value for every bar of the lattice (at its centre).
 std::vector<double> evaluate_field(const Field& f, const Lattice& lattice);
+// The field's value for every module (at its centre): densities, for the lumped masses.
+std::vector<double> evaluate_field_modules(const Field& f, const Lattice& lattice);
 
 // Weibull shape g from the coefficient of variation: CV^2 = G(1 + 2/g) / G(1 + 1/g)^2 - 1.
 // Throws InputError when no shape gives that CV (CV <= 0 or above the g -> 0 limit used).
@@ -55,8 +57,10 @@ double counter_uniform(std::uint64_t seed, std::uint64_t index);
 // the marginal stays exactly standard normal). The grid depends on the body and l, not on L:
 // a coarse and a fine lattice of the same body get the same physical field. A correlated
 // Weibull field maps it through the normal CDF to the Weibull marginal.
-std::vector<double> correlated_gaussian(const Lattice& lattice, double correlation_length,
-                                        Field::Covariance covariance, std::uint64_t seed);
+// `points`: where to take it (bar or module centres).
+std::vector<double> correlated_gaussian(const Lattice& lattice, const std::vector<Vec3>& points,
+                                        double correlation_length, Field::Covariance covariance,
+                                        std::uint64_t seed);
 
 std::string describe_field(const Field& f);
 

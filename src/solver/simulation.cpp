@@ -18,15 +18,29 @@ namespace {
 // Lumped masses: each module gives rho L^3 / 2 to its centre node and rho L^3 / 16 to each
 // of its 8 corners, so a corner carries (modules sharing it) / 16 rho L^3 (1/2 inside,
 // 1/4 on a face, 1/8 on an edge, 1/16 at a box corner) and the total is rho V exactly.
-std::vector<double> lumped_masses(const Lattice& lat, double rho) {
-  const double m_mod = rho * lat.L() * lat.L() * lat.L();
+// With a density field (one value per module) each module lumps its own mass the same way.
+std::vector<double> lumped_masses(const Lattice& lat, double rho,
+                                  const std::vector<double>& rho_m) {
+  const double V = lat.L() * lat.L() * lat.L();
   std::vector<double> m(lat.num_nodes());
-  for (index_t k = 0; k <= lat.nz(); ++k)
-    for (index_t j = 0; j <= lat.ny(); ++j)
-      for (index_t i = 0; i <= lat.nx(); ++i)
-        m[lat.corner(i, j, k)] = m_mod * lat.modules_at_corner(i, j, k) / 16.0;
-  for (index_t c = lat.num_corners(); c < lat.num_nodes(); ++c)
-    m[c] = 0.5 * m_mod;
+  if (rho_m.empty()) {
+    for (index_t k = 0; k <= lat.nz(); ++k)
+      for (index_t j = 0; j <= lat.ny(); ++j)
+        for (index_t i = 0; i <= lat.nx(); ++i)
+          m[lat.corner(i, j, k)] = rho * V * lat.modules_at_corner(i, j, k) / 16.0;
+    for (index_t c = lat.num_corners(); c < lat.num_nodes(); ++c)
+      m[c] = 0.5 * rho * V;
+    return m;
+  }
+  for (index_t k = 0; k < lat.nz(); ++k)
+    for (index_t j = 0; j < lat.ny(); ++j)
+      for (index_t i = 0; i < lat.nx(); ++i) {
+        const index_t module = lat.centre(i, j, k) - lat.num_corners();
+        const double mm = rho_m[module] * V;
+        m[lat.centre(i, j, k)] = 0.5 * mm;
+        for (index_t c = 0; c < 8; ++c)
+          m[lat.corner(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))] += mm / 16.0;
+      }
   return m;
 }
 
@@ -42,7 +56,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     throw InputError(
         fmt::format("damping: expected a coefficient >= 0 in 1/s, got {:g}", opt_.damping));
 
-  mass_ = lumped_masses(lat_, table_.spec().rho);
+  mass_ = lumped_masses(lat_, table_.spec().rho, table_.rho_module());
   inv_mass_.resize(nn);
   for (index_t n = 0; n < nn; ++n)
     inv_mass_[n] = 1.0 / mass_[n];
