@@ -513,7 +513,7 @@ int run_command(const std::string& path, const RunOptions& o) {
     const bool report = n % every == 0 || n == steps || g_interrupted;
     if (s.output.vtu && (n % vtu_every == 0 || n == steps)) {
       const std::string name = fmt::format("lattice_{:06d}.vtu", snapshots.size());
-      write_file(dir + name, lattice_vtu(sim));
+      write_lattice_vtu(sim, dir + name);
       snapshots.emplace_back(sim.time(), name);
       write_file(dir + "lattice.pvd", lattice_pvd(snapshots));
     }

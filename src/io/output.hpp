@@ -33,9 +33,9 @@ void write_file(const std::string& path, const std::string& text);
 
 // One VTK XML unstructured grid of the lattice at the current state: nodes at their reference
 // positions with displacement and velocity, bars as lines with state (0 intact, 1 softening,
-// 2 broken), damage (dissipated energy over Gf A^f, 0 to 1), axial force and, where a field
-// varies, e_p. Binary (base64) arrays.
-std::string lattice_vtu(const Simulation& sim);
+// 2 broken), damage (dissipated energy over Gf A^f, 0 to 1), axial force and, where fields
+// vary, E, Gf, e_p, e_r. Raw binary appended data, values in single precision.
+void write_lattice_vtu(const Simulation& sim, const std::string& path);
 // The ParaView collection that lists the snapshots.
 std::string lattice_pvd(const std::vector<std::pair<double, std::string>>& snapshots);
 

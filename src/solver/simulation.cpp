@@ -678,8 +678,8 @@ Vec3 Simulation::node_force(index_t node) const {
     const double rx = L.r0.x + (ux_[o] - ux_[node]), ry = L.r0.y + (uy_[o] - uy_[node]),
                  rz = L.r0.z + (uz_[o] - uz_[node]);
     const double len = std::sqrt(rx * rx + ry * ry + rz * rz);
-    const double l0 = lat_.family(lat_.bar_address(bar).family).l0;
-    const double s = table_.law(lat_, bar).force((len - l0) / l0, h_[bar]) / len;
+    const BilinearLaw law = table_.law(lat_, bar);
+    const double s = law.force((len - law.l0) / law.l0, h_[bar]) / len;
     f.x += s * rx;
     f.y += s * ry;
     f.z += s * rz;
@@ -785,10 +785,8 @@ void Simulation::step(bool report) {
     // Damping: the part of this step's dissipation a dt v_n . m v_n that lies before t_n,
     // taken as half of it (the exact split a m v_n . dt v_{n-1/2} / 2 differs by O(dt^2)).
     const double damping_half = 0.5 * damping;
-    const double elastic = stored_energy();
-    const double damage = deterministic_sum(lat_.num_bars(), [&](std::int64_t b) {
-      return table_.law(lat_, static_cast<index_t>(b)).dissipated_energy(h_[b]);
-    });
+    const BarEnergies bars = bar_energies();
+    const double elastic = bars.elastic, damage = bars.damage;
     if (step_ == 0)
       ledger_.set_initial(elastic + kinetic);
     report_ = ledger_.report(t, elastic, kinetic, damage, work_half, damping_half);
@@ -837,10 +835,67 @@ double Simulation::bar_force(index_t bar) const {
   return table_.law(lat_, bar).force(bar_strain(lat_, ux_, uy_, uz_, bar), h_[bar]);
 }
 
+template <class F> void Simulation::for_each_bar_row(F&& visit) const {
+  // Row by row in the step's order: each bar's constants without a per-bar lookup.
+  const bool per_bar = table_.per_bar();
+#pragma omp parallel for schedule(static) if (lat_.num_bars() > kParallelMinItems)
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
+    const BarRow& row = bar_rows_[r];
+    const FamilyInfo& fi = lat_.family(row.family);
+    const FamilyMaterial& mat = table_.family(row.family);
+    const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
+    const index_t a0 = fi.a.at(0, row.j, row.k), c0 = fi.b.at(0, row.j, row.k);
+    for (index_t i = 0; i < fi.ni; ++i) {
+      const index_t b = b0 + i;
+      const double dx = fi.d0.x + (ux_[c0 + i] - ux_[a0 + i]);
+      const double dy = fi.d0.y + (uy_[c0 + i] - uy_[a0 + i]);
+      const double dz = fi.d0.z + (uz_[c0 + i] - uz_[a0 + i]);
+      const double e = (std::sqrt(dx * dx + dy * dy + dz * dz) - fi.l0) / fi.l0;
+      const double factor = (i == 0 || i + 1 == fi.ni) ? row.end_factor : row.factor;
+      const BilinearLaw law = per_bar
+                                  ? BilinearLaw{table_.k_bar()[b] * fi.l0, fi.l0,
+                                                table_.e_p_bar()[b], table_.e_r_bar()[b]}
+                                  : BilinearLaw{mat.k * fi.l0 * factor, fi.l0, mat.e_p, mat.e_r};
+      visit(r, b, a0 + i, c0 + i, e, law);
+    }
+  }
+}
+
+Simulation::BarEnergies Simulation::bar_energies() const {
+  std::vector<double>& u = energy_rows_u_;
+  std::vector<double>& d = energy_rows_d_;
+  u.assign(bar_rows_.size(), 0.0);
+  d.assign(bar_rows_.size(), 0.0);
+  for_each_bar_row(
+      [&](std::size_t r, index_t b, index_t, index_t, double e, const BilinearLaw& law) {
+        u[r] += law.stored_energy(e, h_[b]);
+        d[r] += law.dissipated_energy(h_[b]);
+      });
+  BarEnergies out;
+  for (std::size_t r = 0; r < u.size(); ++r) { // row order: the same for any thread count
+    out.elastic += u[r];
+    out.damage += d[r];
+  }
+  return out;
+}
+
 double Simulation::stored_energy() const {
-  return deterministic_sum(lat_.num_bars(), [&](std::int64_t b) {
-    const auto bar = static_cast<index_t>(b);
-    return table_.law(lat_, bar).stored_energy(bar_strain(lat_, ux_, uy_, uz_, bar), h_[bar]);
+  return bar_energies().elastic;
+}
+
+void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<double>& damage,
+                              std::vector<double>& force) const {
+  state.resize(lat_.num_bars());
+  damage.resize(lat_.num_bars());
+  force.resize(lat_.num_bars());
+  for_each_bar_row([&](std::size_t, index_t b, index_t, index_t, double e, const BilinearLaw& law) {
+    const double h = h_[b];
+    state[b] = static_cast<std::uint8_t>(law.state(h));
+    // Damage: dissipated energy over what the bar dissipates when broken, Gf A^f.
+    damage[b] = std::isinf(h)
+                    ? 1.0
+                    : law.dissipated_energy(h) / (0.5 * law.EA * law.e_p * law.e_r * law.l0);
+    force[b] = law.force(e, h);
   });
 }
 

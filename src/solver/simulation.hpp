@@ -115,6 +115,14 @@ public:
   void internal_forces(std::vector<double>& fx, std::vector<double>& fy,
                        std::vector<double>& fz) const;
   double stored_energy() const;
+  struct BarEnergies {
+    double elastic = 0.0, damage = 0.0;
+  };
+  // Elastic and dissipated energy of all bars, summed row by row (deterministic).
+  BarEnergies bar_energies() const;
+  // Per bar: state (0 intact, 1 softening, 2 broken), damage (dissipated / Gf A^f), axial force.
+  void bar_snapshot(std::vector<std::uint8_t>& state, std::vector<double>& damage,
+                    std::vector<double>& force) const;
   // Force of its bars on one node at the current state (from the bar law).
   Vec3 node_force(index_t node) const;
   // The nodal load at the current step's start on a node (zero without loads).
@@ -129,6 +137,8 @@ public:
 
 private:
   template <bool Damped, bool Loads, bool Report> void advance_rows();
+  // visit(row, bar, node a, node b, strain, law) for every bar, rows in parallel.
+  template <class F> void for_each_bar_row(F&& visit) const;
   // Bars of plane rows [begin, end) into that plane's force buffer `s`.
   void bar_rows(std::size_t begin, std::size_t end, double* s);
   // Nodes of plane rows [begin, end), with the bar forces of their plane and the one below.
@@ -191,6 +201,8 @@ private:
 
   // Sums over the imposed-velocity DOF of the current step (apply_velocities).
   double cond_work_ = 0.0, cond_work_half_ = 0.0, cond_damping_ = 0.0, cond_kinetic_ = 0.0;
+
+  mutable std::vector<double> energy_rows_u_, energy_rows_d_; // per-row sums (bar_energies)
 
   Ledger ledger_;
   EnergyReport report_{};
