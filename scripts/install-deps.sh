@@ -9,6 +9,7 @@ PKGS=(
   python3-matplotlib python3-numpy # PNG plots of a run
   python3-vtk9                     # tests: an independent reader of the VTU/PVD output
   libgtest-dev libgmock-dev        # tests
+  libbenchmark-dev                 # microbenchmarks (bench/micro.cpp)
 )
 missing=()
 for p in "${PKGS[@]}"; do

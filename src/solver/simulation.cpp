@@ -835,11 +835,13 @@ double Simulation::bar_force(index_t bar) const {
   return table_.law(lat_, bar).force(bar_strain(lat_, ux_, uy_, uz_, bar), h_[bar]);
 }
 
-template <class F> void Simulation::for_each_bar_row(F&& visit) const {
+template <class Rows, class F> void Simulation::for_each_bar_row(Rows&& rows, F&& visit) const {
   // Row by row in the step's order: each bar's constants without a per-bar lookup.
   const bool per_bar = table_.per_bar();
 #pragma omp parallel for schedule(static) if (lat_.num_bars() > kParallelMinItems)
   for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
+    if (!rows(r))
+      continue;
     const BarRow& row = bar_rows_[r];
     const FamilyInfo& fi = lat_.family(row.family);
     const FamilyMaterial& mat = table_.family(row.family);
@@ -866,7 +868,39 @@ Simulation::BarEnergies Simulation::bar_energies() const {
   std::vector<double>& d = energy_rows_d_;
   u.assign(bar_rows_.size(), 0.0);
   d.assign(bar_rows_.size(), 0.0);
+  const bool per_bar = table_.per_bar();
+#pragma omp parallel for schedule(static) if (lat_.num_bars() > kParallelMinItems)
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
+    if (row_damaged_[r] || per_bar)
+      continue; // the general law below
+    // Intact row, uniform material: every bar elastic, U = k l0^2 e^2 / 2, nothing dissipated.
+    const BarRow& row = bar_rows_[r];
+    const FamilyInfo& fi = lat_.family(row.family);
+    const FamilyMaterial& mat = table_.family(row.family);
+    const index_t a0 = fi.a.at(0, row.j, row.k), c0 = fi.b.at(0, row.j, row.k);
+    const double* __restrict uax = ux_.data() + a0;
+    const double* __restrict uay = uy_.data() + a0;
+    const double* __restrict uaz = uz_.data() + a0;
+    const double* __restrict ubx = ux_.data() + c0;
+    const double* __restrict uby = uy_.data() + c0;
+    const double* __restrict ubz = uz_.data() + c0;
+    auto dl2 = [&](index_t i) {
+      const double dx = fi.d0.x + (ubx[i] - uax[i]), dy = fi.d0.y + (uby[i] - uay[i]),
+                   dz = fi.d0.z + (ubz[i] - uaz[i]);
+      const double dl = std::sqrt(dx * dx + dy * dy + dz * dz) - fi.l0;
+      return dl * dl;
+    };
+    double sum = 0.0;
+    const index_t last = fi.ni - 1;
+#pragma omp simd reduction(+ : sum)
+    for (index_t i = 1; i < last; ++i)
+      sum += dl2(i);
+    const double ends = dl2(0) + (last > 0 ? dl2(last) : 0.0);
+    // k e^2 l0^2 / 2 = k (l - l0)^2 / 2, the row's inner and end bars with their area factors.
+    u[r] = 0.5 * mat.k * (row.factor * sum + row.end_factor * ends);
+  }
   for_each_bar_row(
+      [&](std::size_t r) { return row_damaged_[r] || per_bar; },
       [&](std::size_t r, index_t b, index_t, index_t, double e, const BilinearLaw& law) {
         u[r] += law.stored_energy(e, h_[b]);
         d[r] += law.dissipated_energy(h_[b]);
@@ -888,15 +922,16 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
   state.resize(lat_.num_bars());
   damage.resize(lat_.num_bars());
   force.resize(lat_.num_bars());
-  for_each_bar_row([&](std::size_t, index_t b, index_t, index_t, double e, const BilinearLaw& law) {
-    const double h = h_[b];
-    state[b] = static_cast<std::uint8_t>(law.state(h));
-    // Damage: dissipated energy over what the bar dissipates when broken, Gf A^f.
-    damage[b] = std::isinf(h)
-                    ? 1.0
-                    : law.dissipated_energy(h) / (0.5 * law.EA * law.e_p * law.e_r * law.l0);
-    force[b] = law.force(e, h);
-  });
+  for_each_bar_row([](std::size_t) { return true; },
+                   [&](std::size_t, index_t b, index_t, index_t, double e, const BilinearLaw& law) {
+                     const double h = h_[b];
+                     state[b] = static_cast<std::uint8_t>(law.state(h));
+                     // Damage: dissipated energy over what the bar dissipates when broken, Gf A^f.
+                     damage[b] = std::isinf(h) ? 1.0
+                                               : law.dissipated_energy(h) /
+                                                     (0.5 * law.EA * law.e_p * law.e_r * law.l0);
+                     force[b] = law.force(e, h);
+                   });
 }
 
 void Simulation::internal_forces(std::vector<double>& fx, std::vector<double>& fy,

@@ -137,8 +137,9 @@ public:
 
 private:
   template <bool Damped, bool Loads, bool Report> void advance_rows();
-  // visit(row, bar, node a, node b, strain, law) for every bar, rows in parallel.
-  template <class F> void for_each_bar_row(F&& visit) const;
+  // visit(row, bar, node a, node b, strain, law) for every bar of the rows r with rows(r),
+  // rows in parallel.
+  template <class Rows, class F> void for_each_bar_row(Rows&& rows, F&& visit) const;
   // Bars of plane rows [begin, end) into that plane's force buffer `s`.
   void bar_rows(std::size_t begin, std::size_t end, double* s);
   // Nodes of plane rows [begin, end), with the bar forces of their plane and the one below.
