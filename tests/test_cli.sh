@@ -57,13 +57,54 @@ rm -f "$T/run/crack.png" "$T/run/energy.png"
 "$LDEM" plot "$T/run" && [ -s "$T/run/crack.png" ] && ok || bad "ldem plot"
 "$LDEM" run "$GOOD" --out "$T/run" --force --no-plot >/dev/null 2>&1 && ok || bad "--force into a used folder"
 
-# Ctrl-C: a clean stop, exit code 130, every file complete up to then and under its name.
-sed 's/^end = 4.0e-3/end = 4.0/' "$GOOD" >"$T/long.toml"
-timeout -s INT --preserve-status 2 "$LDEM" run "$T/long.toml" --out "$T/int" --no-plot >/dev/null 2>"$T/stderr"
-rc=$?
-if [ $rc -eq 130 ] && grep -q '"interrupted": true' "$T/int/summary.json" && ! ls "$T/int" | grep -q '\.part$' &&
-  [ "$(head -1 "$T/int/energy.csv")" = "time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,balance_error" ] &&
-  [ "$(wc -l <"$T/int/energy.csv")" -gt 2 ]; then ok; else bad "Ctrl-C: rc $rc, $(ls "$T/int" | tr '\n' ' ')"; fi
+# Interrupt and resume: SIGINT or SIGTERM at several moments, resumed on another thread count,
+# and a hard kill after periodic checkpoints; every output byte-identical to an uninterrupted
+# run. The case is copied so that a changed case can be tested too.
+sed 's/^end = 4.0e-3/end = 8.0e-3/' "$GOOD" >"$T/case.toml"
+"$LDEM" run "$T/case.toml" --out "$T/ref" --no-plot >/dev/null 2>&1
+same_as_ref() {
+  local d=$1 f
+  for f in energy.csv events.csv probes.csv lattice.pvd $(ls "$T/ref" | grep '\.vtu$'); do
+    cmp -s "$T/ref/$f" "$d/$f" || { echo "differs: $d/$f"; return 1; }
+  done
+}
+for spec in "INT 0.25 130 1" "INT 0.5 130 2" "TERM 0.35 143 1"; do
+  read -r sig after code threads <<<"$spec"
+  d="$T/int_${sig}_$after"
+  timeout -s "$sig" --preserve-status "$after" "$LDEM" run "$T/case.toml" --out "$d" --no-plot --threads 2 >/dev/null 2>"$T/stderr"
+  rc=$?
+  if [ $rc -ne "$code" ] || ! grep -q "ldem resume $d" "$T/stderr" || [ ! -s "$d/checkpoint/state.ckpt" ]; then
+    bad "SIG$sig after $after s: rc $rc, $(cat "$T/stderr")"; continue
+  fi
+  grep -q '"interrupted": true' "$d/summary.json" || bad "SIG$sig: summary not marked interrupted"
+  if "$LDEM" resume "$d" --threads "$threads" --no-plot >/dev/null 2>"$T/stderr" && same_as_ref "$d"; then ok; else bad "resume after SIG$sig at $after s: $(cat "$T/stderr")"; fi
+done
+# A hard kill (no chance to clean up) after periodic checkpoints: resume from the last one.
+sed 's/^energy_every = 50/energy_every = 50\ncheckpoint_every = 200/' "$T/case.toml" >"$T/ckpt.toml"
+"$LDEM" run "$T/ckpt.toml" --out "$T/ref2" --no-plot >/dev/null 2>&1
+( timeout -s KILL 0.6 "$LDEM" run "$T/ckpt.toml" --out "$T/kill" --no-plot >/dev/null 2>&1 ) 2>/dev/null
+if [ -s "$T/kill/checkpoint/state.ckpt" ] && "$LDEM" resume "$T/kill" --no-plot >/dev/null 2>"$T/stderr" &&
+  cmp -s "$T/ref2/energy.csv" "$T/kill/energy.csv" && cmp -s "$T/ref2/events.csv" "$T/kill/events.csv" &&
+  cmp -s "$T/ref2/probes.csv" "$T/kill/probes.csv"; then ok; else bad "resume after a hard kill: $(cat "$T/stderr")"; fi
+# Bad checkpoints are refused with their reason, and nothing is changed.
+timeout -s INT --preserve-status 0.3 "$LDEM" run "$T/case.toml" --out "$T/bad" --no-plot >/dev/null 2>&1
+cp "$T/bad/checkpoint/state.ckpt" "$T/good.ckpt"
+expect_resume_error() {
+  "$LDEM" resume "$T/bad" --no-plot >/dev/null 2>"$T/stderr"
+  local rc=$?
+  if [ $rc -eq 2 ] && grep -q -- "$1" "$T/stderr"; then ok; else bad "resume with $2: rc $rc, $(cat "$T/stderr")"; fi
+  cp "$T/good.ckpt" "$T/bad/checkpoint/state.ckpt"
+}
+head -c 1000 "$T/good.ckpt" >"$T/bad/checkpoint/state.ckpt"
+expect_resume_error "truncated checkpoint" "a truncated checkpoint"
+printf '\xff' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=5000 conv=notrunc 2>/dev/null
+expect_resume_error "checksum mismatch" "a corrupt checkpoint"
+printf '\x07' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
+expect_resume_error "format version 7" "another format version"
+echo "# changed" >>"$T/case.toml"
+expect_resume_error "the case file changed since the checkpoint" "a changed case"
+"$LDEM" resume "$T/nowhere" >/dev/null 2>"$T/stderr"
+[ $? -eq 2 ] && grep -q "no checkpoint to resume from" "$T/stderr" && ok || bad "resume without a checkpoint"
 
 # A heterogeneous material: fields.csv and fields.png, and the per-bar fields in the VTU.
 sed 's/^Gf = 10.0 .*/Gf = { type = "weibull", mean = 10.0, cv = 0.1, seed = 3 }/; s/^end = 4.0e-3/end = 2.0e-4/' "$GOOD" >"$T/weibull.toml"

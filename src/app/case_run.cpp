@@ -9,8 +9,10 @@
 #include <cmath>
 #include <csignal>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fmt/format.h>
+#include <fstream>
 #include <omp.h>
 #include <sstream>
 #include <toml++/toml.h>
@@ -27,9 +29,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::atomic<bool> g_interrupted{false};
-void on_signal(int) {
-  g_interrupted = true;
+// The signal that asked the run to stop (SIGINT or SIGTERM), 0 while none has.
+std::atomic<int> g_interrupted{0};
+void on_signal(int sig) {
+  g_interrupted = sig;
 }
 
 std::vector<index_t> select(const Lattice& lat, const NodeSetSpec& s) {
@@ -409,22 +412,317 @@ private:
 
 } // namespace
 
+namespace {
+
+constexpr char kCheckpointMagic[8] = {'L', 'D', 'E', 'M', 'C', 'K', 'P', 'T'};
+constexpr std::uint32_t kCheckpointVersion = 1;
+
+std::uint64_t fnv1a(const char* p, std::size_t n) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (std::size_t i = 0; i < n; ++i)
+    h = (h ^ static_cast<unsigned char>(p[i])) * 0x100000001b3ull;
+  return h;
+}
+
+std::string read_all(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    throw InputError(fmt::format("{}: cannot read", path));
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Where a run stands between steps: what the outputs need to continue.
+struct RunState {
+  std::string case_path; // absolute
+  std::uint64_t case_hash = 0;
+  std::uint64_t next = 0; // the next step to take
+  std::vector<std::pair<double, std::string>> snapshots;
+  std::uint64_t n_soft = 0, n_broken = 0;
+  double max_balance = 0.0;
+  std::uint64_t lengths[3] = {0, 0, 0}; // bytes of energy.csv, events.csv, probes.csv
+};
+
+template <class T> void put(std::string& out, const T& v) {
+  out.append(reinterpret_cast<const char*>(&v), sizeof v);
+}
+void put_str(std::string& out, const std::string& s) {
+  put(out, static_cast<std::uint64_t>(s.size()));
+  out += s;
+}
+template <class T> void get(const std::string& in, std::size_t& pos, T& v) {
+  if (pos + sizeof v > in.size())
+    throw InputError("checkpoint: truncated");
+  std::memcpy(&v, in.data() + pos, sizeof v);
+  pos += sizeof v;
+}
+std::string get_str(const std::string& in, std::size_t& pos) {
+  std::uint64_t n = 0;
+  get(in, pos, n);
+  if (pos + n > in.size())
+    throw InputError("checkpoint: truncated");
+  std::string s = in.substr(pos, n);
+  pos += n;
+  return s;
+}
+
+// DIR/checkpoint/state.ckpt: magic, version, payload size, payload checksum, payload. Written
+// to a temporary name and renamed over the previous one only when complete.
+void write_checkpoint(const std::string& dir, const RunState& st, const Simulation& sim) {
+  std::string payload;
+  put_str(payload, st.case_path);
+  put(payload, st.case_hash);
+  put(payload, st.next);
+  put(payload, static_cast<std::uint64_t>(st.snapshots.size()));
+  for (const auto& [t, name] : st.snapshots) {
+    put(payload, t);
+    put_str(payload, name);
+  }
+  put(payload, st.n_soft);
+  put(payload, st.n_broken);
+  put(payload, st.max_balance);
+  for (std::uint64_t l : st.lengths)
+    put(payload, l);
+  sim.save_state(payload);
+  std::string file(kCheckpointMagic, 8);
+  put(file, kCheckpointVersion);
+  put(file, static_cast<std::uint64_t>(payload.size()));
+  put(file, fnv1a(payload.data(), payload.size()));
+  file += payload;
+  fs::create_directories(dir + "checkpoint");
+  write_file(dir + "checkpoint/state.ckpt", file);
+}
+
+// Reads a checkpoint: refuses a truncated or corrupt file, another format version, or a case
+// file changed since. Returns the run state; `payload` and `pos` then hold the simulation's.
+RunState read_checkpoint(const std::string& path, std::string& payload, std::size_t& pos) {
+  std::string file;
+  try {
+    file = read_all(path);
+  } catch (const InputError&) {
+    throw InputError(fmt::format("{}: no checkpoint to resume from", path));
+  }
+  std::size_t p = 0;
+  if (file.size() < 28 || file.compare(0, 8, std::string(kCheckpointMagic, 8)) != 0)
+    throw InputError(fmt::format("{}: not an ldem checkpoint (or truncated)", path));
+  p = 8;
+  std::uint32_t version = 0;
+  std::uint64_t size = 0, sum = 0;
+  get(file, p, version);
+  get(file, p, size);
+  get(file, p, sum);
+  if (version != kCheckpointVersion)
+    throw InputError(fmt::format("{}: checkpoint format version {}, this ldem reads version {}",
+                                 path, version, kCheckpointVersion));
+  if (file.size() - p != size)
+    throw InputError(fmt::format("{}: truncated checkpoint ({} bytes of payload, {} expected)",
+                                 path, file.size() - p, size));
+  payload = file.substr(p);
+  if (fnv1a(payload.data(), payload.size()) != sum)
+    throw InputError(fmt::format("{}: checkpoint checksum mismatch: the file is corrupt", path));
+  pos = 0;
+  RunState st;
+  st.case_path = get_str(payload, pos);
+  get(payload, pos, st.case_hash);
+  get(payload, pos, st.next);
+  std::uint64_t ns = 0;
+  get(payload, pos, ns);
+  for (std::uint64_t i = 0; i < ns; ++i) {
+    double t = 0;
+    get(payload, pos, t);
+    st.snapshots.emplace_back(t, get_str(payload, pos));
+  }
+  get(payload, pos, st.n_soft);
+  get(payload, pos, st.n_broken);
+  get(payload, pos, st.max_balance);
+  for (std::uint64_t& l : st.lengths)
+    get(payload, pos, l);
+  return st;
+}
+
+// The time-step loop of a run, from step st.next, writing into `dir`. `fresh`: the output
+// files start with their headers; otherwise they continue where the checkpoint left them.
+int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, bool plots,
+             std::uint64_t checkpoint_every, double checkpoint_seconds) {
+  const CaseSpec& s = c.spec;
+  Simulation& sim = *c.sim;
+  const Lattice& lat = sim.lattice();
+  const std::string dir = out_dir + "/";
+  const auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / sim.dt() - 1e-9));
+  const std::uint64_t every =
+      s.output.energy_every ? s.output.energy_every : std::max<std::uint64_t>(1, steps / 500);
+  const std::uint64_t vtu_every =
+      s.output.vtu_every ? s.output.vtu_every : std::max<std::uint64_t>(1, steps / 20);
+
+  auto open = [&](const char* name, int i) {
+    return fresh ? std::make_unique<OutputFile>(dir + name)
+                 : std::make_unique<OutputFile>(dir + name, st.lengths[i]);
+  };
+  const auto energy = open("energy.csv", 0), events = open("events.csv", 1),
+             probes = open("probes.csv", 2);
+  if (fresh) {
+    energy->write("time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,"
+                  "balance_error\n");
+    events->write("bar,event,time,x,y,z\n");
+    std::string head = "time";
+    for (const ProbeSpec& p : s.probes)
+      head += "," + p.name;
+    probes->write(head + "\n");
+  }
+  auto flush_events = [&] {
+    std::string rows;
+    for (const Event& e : sim.take_events()) {
+      const Vec3 m = lat.bar_centre(e.bar);
+      (e.state == BarState::Softening ? st.n_soft : st.n_broken)++;
+      rows += fmt::format("{},{},{:.9g},{:.9g},{:.9g},{:.9g}\n", e.bar,
+                          e.state == BarState::Softening ? "softening" : "broken",
+                          static_cast<double>(e.step) * sim.dt(), m.x, m.y, m.z);
+    }
+    events->write(rows);
+  };
+  auto probe_row = [&]() {
+    std::string row = fmt::format("{:.9g}", sim.time());
+    for (std::size_t i = 0; i < s.probes.size(); ++i) {
+      const ProbeSpec& p = s.probes[i];
+      double v = 0.0;
+      if (p.kind == ProbeSpec::Kind::BarForce) {
+        v = sim.bar_force(c.probe_bars[i]);
+      } else if (p.kind == ProbeSpec::Kind::Reaction) {
+        // The support force that holds the set: minus the bar forces and loads on its nodes.
+        for (index_t n : set_named(c.sets, p.set).nodes) {
+          const Vec3 f = sim.node_force(n), l = sim.nodal_load(n);
+          v -= p.component == 0 ? f.x + l.x : p.component == 1 ? f.y + l.y : f.z + l.z;
+        }
+      } else {
+        for (const LoadSpec& l : s.loads)
+          if (l.name == p.load)
+            v = l.scale(sim.time()) *
+                std::sqrt(l.force.x * l.force.x + l.force.y * l.force.y + l.force.z * l.force.z) *
+                static_cast<double>(set_named(c.sets, l.set).nodes.size());
+      }
+      row += fmt::format(",{:.9g}", v);
+    }
+    probes->write(row + "\n");
+  };
+  auto checkpoint = [&](std::uint64_t next) {
+    energy->flush();
+    events->flush();
+    probes->flush();
+    st.next = next;
+    st.lengths[0] = energy->size();
+    st.lengths[1] = events->size();
+    st.lengths[2] = probes->size();
+    write_checkpoint(dir, st, sim);
+  };
+
+  Progress progress(steps);
+  const auto t0 = std::chrono::steady_clock::now();
+  auto last_checkpoint = t0;
+  const std::uint64_t first = st.next;
+  std::uint64_t n = st.next;
+  for (; n <= steps; ++n) {
+    // An interruption stops between steps: the checkpoint holds the state before step n and
+    // the outputs hold every row of the steps before it, so a resumed run writes exactly
+    // what the uninterrupted one would have.
+    if (g_interrupted)
+      break;
+    if (n > first &&
+        ((checkpoint_every && n % checkpoint_every == 0) ||
+         (checkpoint_seconds > 0 &&
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - last_checkpoint)
+                  .count() > checkpoint_seconds))) {
+      checkpoint(n);
+      last_checkpoint = std::chrono::steady_clock::now();
+    }
+    const bool report = n % every == 0 || n == steps;
+    if (s.output.vtu && (n % vtu_every == 0 || n == steps)) {
+      const std::string name = fmt::format("lattice_{:06d}.vtu", st.snapshots.size());
+      write_lattice_vtu(sim, dir + name);
+      st.snapshots.emplace_back(sim.time(), name);
+      write_file(dir + "lattice.pvd", lattice_pvd(st.snapshots));
+    }
+    if (report)
+      probe_row();
+    sim.step(report);
+    if (report) {
+      const EnergyReport& r = sim.last_report();
+      energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g}\n", r.time,
+                                r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
+                                r.damping_dissipated, r.balance_error));
+      if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
+          n > 0)
+        st.max_balance = std::max(st.max_balance, r.balance_error);
+      flush_events();
+      energy->flush();
+      events->flush();
+      probes->flush();
+      progress.update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error, n == steps);
+    }
+  }
+  const int signal = g_interrupted;
+  if (signal)
+    checkpoint(n);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  energy->commit();
+  events->commit();
+  probes->commit();
+  const std::uint64_t done = n - first;
+  const std::uint64_t softened = sim.softening_count(), broken = sim.broken_count();
+  write_file(
+      dir + "summary.json",
+      fmt::format("{{\n  \"case\": \"{}\",\n  \"title\": \"{}\",\n  \"nodes\": {},\n"
+                  "  \"bars\": {},\n  \"steps\": {},\n  \"dt\": {:.9g},\n"
+                  "  \"dt_stable\": {:.9g},\n  \"end_time\": {:.9g},\n  \"wall_s\": {:.4f},\n"
+                  "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n"
+                  "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
+                  "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
+                  "  \"interrupted\": {},\n  \"analysis\": {{}}\n}}\n",
+                  st.case_path, s.title, lat.num_nodes(), lat.num_bars(), n, sim.dt(),
+                  sim.stable_step().dt, sim.time(), wall,
+                  static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
+                  omp_get_max_threads(), st.max_balance, softened, broken, c.precracked.size(),
+                  signal ? "true" : "false"));
+  if (signal) {
+    fmt::print(stderr,
+               "ldem: stopped by {} at t = {:.4g} s (step {}); outputs complete up to then and "
+               "a checkpoint in {}/checkpoint. Continue with: ldem resume {}\n",
+               signal == SIGTERM ? "SIGTERM" : "SIGINT", sim.time(), n, out_dir, out_dir, out_dir);
+    return signal == SIGTERM ? 143 : 130;
+  }
+  if (plots && s.output.plots)
+    plot_command(out_dir);
+  fmt::print(stderr, "ldem: done: {} steps in {:.1f} s, results in {}\n", done, wall, out_dir);
+  return 0;
+}
+
+} // namespace
+
+// From here on a Ctrl-C or SIGTERM only asks the run to stop at the next step boundary (with
+// a checkpoint); before the first step that is step 0.
+void catch_stop_signals() {
+  g_interrupted = 0;
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+}
+
 int run_command(const std::string& path, const RunOptions& o) {
+  catch_stop_signals();
   if (o.threads > 0)
     omp_set_num_threads(o.threads);
   BuiltCase c = build_case(path);
   prepare_output(o.out_dir, o.force);
   for (const std::string& w : c.warnings)
     fmt::print(stderr, "ldem: warning: {}\n", w);
-  const CaseSpec& s = c.spec;
-  Simulation& sim = *c.sim;
+  const Simulation& sim = *c.sim;
   const Lattice& lat = sim.lattice();
+  std::error_code ec;
   for (const auto& e : fs::directory_iterator(o.out_dir)) // --force: old snapshots go
     if (e.path().extension() == ".vtu" && e.path().filename().string().rfind("lattice_", 0) == 0)
       fs::remove(e.path());
+  fs::remove_all(o.out_dir + "/checkpoint", ec);
   const std::string dir = o.out_dir + "/";
   write_file(dir + "case.resolved.toml", resolved_case_toml(c));
-
   if (sim.table().per_bar()) {
     // The material fields per bar (every bar up to 2 million, else a regular sample), for
     // fields.png and for the user's own statistics.
@@ -450,127 +748,39 @@ int run_command(const std::string& path, const RunOptions& o) {
     fields.write(rows);
     fields.commit();
   }
-  const auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / sim.dt() - 1e-9));
-  const std::uint64_t every =
-      s.output.energy_every ? s.output.energy_every : std::max<std::uint64_t>(1, steps / 500);
-  const std::uint64_t vtu_every =
-      s.output.vtu_every ? s.output.vtu_every : std::max<std::uint64_t>(1, steps / 20);
+  RunState st;
+  st.case_path = fs::absolute(path).string();
+  const std::string text = read_all(path);
+  st.case_hash = fnv1a(text.data(), text.size());
+  return run_loop(c, o.out_dir, st, true, o.plots, c.spec.output.checkpoint_every,
+                  c.spec.output.checkpoint_seconds);
+}
 
-  OutputFile energy(dir + "energy.csv"), events(dir + "events.csv"), probes(dir + "probes.csv");
-  energy.write("time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,"
-               "balance_error\n");
-  events.write("bar,event,time,x,y,z\n");
-  std::string head = "time";
-  for (const ProbeSpec& p : s.probes)
-    head += "," + p.name;
-  probes.write(head + "\n");
-  std::vector<std::pair<double, std::string>> snapshots;
-  std::uint64_t n_soft = 0, n_broken = 0;
-  auto flush_events = [&] {
-    std::string rows;
-    for (const Event& e : sim.take_events()) {
-      const Vec3 m = lat.bar_centre(e.bar);
-      (e.state == BarState::Softening ? n_soft : n_broken)++;
-      rows += fmt::format("{},{},{:.9g},{:.9g},{:.9g},{:.9g}\n", e.bar,
-                          e.state == BarState::Softening ? "softening" : "broken",
-                          static_cast<double>(e.step) * sim.dt(), m.x, m.y, m.z);
-    }
-    events.write(rows);
-  };
-  auto probe_row = [&]() {
-    std::string row = fmt::format("{:.9g}", sim.time());
-    for (std::size_t i = 0; i < s.probes.size(); ++i) {
-      const ProbeSpec& p = s.probes[i];
-      double v = 0.0;
-      if (p.kind == ProbeSpec::Kind::BarForce) {
-        v = sim.bar_force(c.probe_bars[i]);
-      } else if (p.kind == ProbeSpec::Kind::Reaction) {
-        // The support force that holds the set: minus the bar forces and loads on its nodes.
-        for (index_t n : set_named(c.sets, p.set).nodes) {
-          const Vec3 f = sim.node_force(n), l = sim.nodal_load(n);
-          v -= p.component == 0 ? f.x + l.x : p.component == 1 ? f.y + l.y : f.z + l.z;
-        }
-      } else {
-        for (const LoadSpec& l : s.loads)
-          if (l.name == p.load)
-            v = l.scale(sim.time()) *
-                std::sqrt(l.force.x * l.force.x + l.force.y * l.force.y + l.force.z * l.force.z) *
-                static_cast<double>(set_named(c.sets, l.set).nodes.size());
-      }
-      row += fmt::format(",{:.9g}", v);
-    }
-    probes.write(row + "\n");
-  };
-
-  g_interrupted = false;
-  auto old_int = std::signal(SIGINT, on_signal);
-  auto old_term = std::signal(SIGTERM, on_signal);
-  Progress progress(steps);
-  double max_balance = 0.0;
-  const auto t0 = std::chrono::steady_clock::now();
-  std::uint64_t done = 0;
-  for (std::uint64_t n = 0; n <= steps; ++n) {
-    const bool report = n % every == 0 || n == steps || g_interrupted;
-    if (s.output.vtu && (n % vtu_every == 0 || n == steps)) {
-      const std::string name = fmt::format("lattice_{:06d}.vtu", snapshots.size());
-      write_lattice_vtu(sim, dir + name);
-      snapshots.emplace_back(sim.time(), name);
-      write_file(dir + "lattice.pvd", lattice_pvd(snapshots));
-    }
-    if (report)
-      probe_row();
-    sim.step(report);
-    done = n;
-    if (report) {
-      const EnergyReport& r = sim.last_report();
-      energy.write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g}\n", r.time,
-                               r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
-                               r.damping_dissipated, r.balance_error));
-      if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
-          n > 0)
-        max_balance = std::max(max_balance, r.balance_error);
-      flush_events();
-      energy.flush();
-      events.flush();
-      probes.flush();
-      progress.update(n, r.time, n_broken + c.precracked.size(), r.balance_error, n == steps);
-    }
-    if (g_interrupted)
-      break;
+int resume_command(const std::string& out_dir, int threads, bool plots) {
+  catch_stop_signals();
+  if (threads > 0)
+    omp_set_num_threads(threads);
+  std::string payload;
+  std::size_t pos = 0;
+  RunState st = read_checkpoint(out_dir + "/checkpoint/state.ckpt", payload, pos);
+  std::string text;
+  try {
+    text = read_all(st.case_path);
+  } catch (const InputError&) {
+    throw InputError(fmt::format("{}: the case file of this run is gone; a resume needs it "
+                                 "unchanged",
+                                 st.case_path));
   }
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::signal(SIGINT, old_int);
-  std::signal(SIGTERM, old_term);
-  energy.commit();
-  events.commit();
-  probes.commit();
-  const std::uint64_t softened = sim.softening_count(), broken = sim.broken_count();
-  write_file(
-      dir + "summary.json",
-      fmt::format("{{\n  \"case\": \"{}\",\n  \"title\": \"{}\",\n  \"nodes\": {},\n"
-                  "  \"bars\": {},\n  \"steps\": {},\n  \"dt\": {:.9g},\n"
-                  "  \"dt_stable\": {:.9g},\n  \"end_time\": {:.9g},\n  \"wall_s\": {:.4f},\n"
-                  "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n"
-                  "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
-                  "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
-                  "  \"interrupted\": {},\n  \"analysis\": {{}}\n}}\n",
-                  path, s.title, lat.num_nodes(), lat.num_bars(), done + 1, sim.dt(),
-                  sim.stable_step().dt, sim.time(), wall,
-                  static_cast<double>(lat.num_bars()) * static_cast<double>(done + 1) / wall,
-                  omp_get_max_threads(), max_balance, softened, broken, c.precracked.size(),
-                  g_interrupted ? "true" : "false"));
-  if (g_interrupted) {
-    fmt::print(stderr,
-               "ldem: interrupted at t = {:.4g} s; the outputs in {} are complete up "
-               "to then\n",
-               sim.time(), o.out_dir);
-    return 130;
-  }
-  if (o.plots && s.output.plots)
-    plot_command(o.out_dir);
-  fmt::print(stderr, "ldem: done: {} steps in {:.1f} s, results in {}\n", done + 1, wall,
-             o.out_dir);
-  return 0;
+  if (fnv1a(text.data(), text.size()) != st.case_hash)
+    throw InputError(fmt::format("{}: the case file changed since the checkpoint in {}; a "
+                                 "resume needs it unchanged (start a new run instead)",
+                                 st.case_path, out_dir));
+  BuiltCase c = build_case(st.case_path);
+  c.sim->load_state(payload, pos);
+  fmt::print(stderr, "ldem: resuming {} at step {} (t = {:.4g} s)\n", st.case_path, st.next,
+             c.sim->time());
+  return run_loop(c, out_dir, st, false, plots, c.spec.output.checkpoint_every,
+                  c.spec.output.checkpoint_seconds);
 }
 
 int plot_command(const std::string& dir) {

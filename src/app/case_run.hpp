@@ -33,6 +33,8 @@ struct RunOptions {
 
 int check_command(const std::string& path);
 int run_command(const std::string& path, const RunOptions& options);
+// Continues the interrupted run in `out_dir` from its checkpoint.
+int resume_command(const std::string& out_dir, int threads, bool plots);
 int plot_command(const std::string& dir);
 
 // The resolved case (every default and derived value), as TOML.

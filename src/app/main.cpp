@@ -39,6 +39,17 @@ int main(int argc, char** argv) {
                "K_r, L_cr) without running it");
   cmd_check->add_option("case", case_path, "Case file (TOML)")->required();
 
+  std::string resume_dir;
+  int resume_threads = 0;
+  bool resume_no_plot = false;
+  auto* cmd_resume =
+      app.add_subcommand("resume", "Continue an interrupted run from its checkpoint; the outputs "
+                                   "continue as if the run had never stopped");
+  cmd_resume->add_option("dir", resume_dir, "Output folder of the interrupted run")->required();
+  cmd_resume->add_option("--threads", resume_threads, "OpenMP threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_resume->add_flag("--no-plot", resume_no_plot, "Do not make the PNG plots");
+
   std::string plot_dir;
   auto* cmd_plot = app.add_subcommand("plot", "Make crack.png and energy.png of an output folder");
   cmd_plot->add_option("dir", plot_dir, "Output folder of a run")->required();
@@ -82,6 +93,8 @@ int main(int argc, char** argv) {
       run.plots = !no_plot;
       return ldem::run_command(case_path, run);
     }
+    if (cmd_resume->parsed())
+      return ldem::resume_command(resume_dir, resume_threads, !resume_no_plot);
     if (cmd_check->parsed())
       return ldem::check_command(case_path);
     if (cmd_plot->parsed())

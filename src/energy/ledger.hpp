@@ -1,6 +1,8 @@
 // The energy balance: external work = elastic + kinetic + damage + damping (+ initial).
 #pragma once
 
+#include <array>
+
 namespace ldem {
 
 struct EnergyReport {
@@ -25,6 +27,13 @@ public:
     damping_ += damping_dissipated;
   }
   void set_initial(double energy) { initial_ = energy; }
+  // The accumulators, for checkpoints.
+  std::array<double, 3> state() const { return {work_, damping_, initial_}; }
+  void set_state(const std::array<double, 3>& s) {
+    work_ = s[0];
+    damping_ = s[1];
+    initial_ = s[2];
+  }
   double initial() const { return initial_; }
 
   EnergyReport report(double time, double elastic, double kinetic, double damage, double work_half,

@@ -102,6 +102,9 @@ const std::vector<KeyDecl>& case_keys() {
     {"output", "vtu", "bool", "true", "", -kInf, kInf, false, false, "", "Write lattice.pvd and its .vtu files."},
     {"output", "plots", "bool", "true", "", -kInf, kInf, false, false, "", "Make crack.png and energy.png at the end (also: --no-plot)."},
 
+    {"output", "checkpoint_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between checkpoints in checkpoint/ (0: by wall time only). A stop by Ctrl-C or SIGTERM always leaves one; `ldem resume DIR` continues."},
+    {"output", "checkpoint_seconds", "float", "600", "s", 0, kInf, false, false, "", "Wall-clock seconds between checkpoints (0: never by time)."},
+
     {"probe", "name", "string", "required", "", -kInf, kInf, false, false, "", "Column name in probes.csv."},
     {"probe", "kind", "string", "required", "", -kInf, kInf, false, false, "\"bar_force\", \"reaction\", \"load\"", "What to record."},
     {"probe", "at", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "bar_force: axial force [N] of the bar whose centre is nearest to this point."},

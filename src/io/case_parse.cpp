@@ -577,6 +577,9 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.output.vtu_every = static_cast<std::uint64_t>(r.get_int(out, "output", "vtu_every", "output."));
   c.output.vtu = r.get_bool(out, "output", "vtu", "output.");
   c.output.plots = r.get_bool(out, "output", "plots", "output.");
+  c.output.checkpoint_every =
+      static_cast<std::uint64_t>(r.get_int(out, "output", "checkpoint_every", "output."));
+  c.output.checkpoint_seconds = r.get_float(out, "output", "checkpoint_seconds", "output.");
 
   std::vector<std::string> load_names;
   for (const LoadSpec& l : c.loads)

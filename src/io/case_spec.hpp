@@ -61,6 +61,8 @@ struct OutputSpec {
   std::uint64_t vtu_every = 0;    // steps between lattice snapshots (0: about 20 per run)
   bool vtu = true;
   bool plots = true;
+  std::uint64_t checkpoint_every = 0; // steps between checkpoints (0: by wall time only)
+  double checkpoint_seconds = 600.0;  // wall-clock seconds between checkpoints (0: never)
 };
 
 struct CaseSpec {

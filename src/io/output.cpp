@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fmt/format.h>
 
 namespace ldem {
@@ -15,12 +16,29 @@ OutputFile::OutputFile(std::string path) : path_(std::move(path)), part_(path_ +
     throw InputError(fmt::format("{}: cannot write ({})", part_, std::strerror(errno)));
 }
 
+OutputFile::OutputFile(std::string path, std::uint64_t length)
+    : path_(std::move(path)), part_(path_ + ".part") {
+  std::error_code ec;
+  if (!std::filesystem::exists(part_, ec))
+    std::filesystem::rename(path_, part_, ec);
+  if (ec || std::filesystem::file_size(part_, ec) < length || ec)
+    throw InputError(fmt::format("{}: cannot continue it: missing or shorter than the {} bytes the "
+                                 "checkpoint recorded",
+                                 path_, length));
+  std::filesystem::resize_file(part_, length);
+  f_ = std::fopen(part_.c_str(), "ab");
+  if (!f_)
+    throw InputError(fmt::format("{}: cannot write ({})", part_, std::strerror(errno)));
+  size_ = length;
+}
+
 OutputFile::~OutputFile() {
   if (f_)
     commit();
 }
 
 void OutputFile::write(const std::string& text) {
+  size_ += text.size();
   if (std::fwrite(text.data(), 1, text.size(), f_) != text.size())
     throw InputError(fmt::format("{}: write failed ({})", part_, std::strerror(errno)));
 }

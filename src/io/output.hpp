@@ -4,6 +4,7 @@
 
 #include "solver/simulation.hpp"
 
+#include <cstdint>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -15,6 +16,10 @@ namespace ldem {
 class OutputFile {
 public:
   explicit OutputFile(std::string path);
+  // Continues a file of an interrupted run: its temporary or final version, cut back to
+  // `length` bytes (what a checkpoint recorded), then appended to.
+  OutputFile(std::string path, std::uint64_t length);
+  std::uint64_t size() const { return size_; }
   ~OutputFile();
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
@@ -26,6 +31,7 @@ public:
 private:
   std::string path_, part_;
   std::FILE* f_ = nullptr;
+  std::uint64_t size_ = 0;
 };
 
 // Writes a whole file at once (temporary name, then rename).

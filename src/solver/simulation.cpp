@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <fmt/format.h>
 #include <omp.h>
 #if defined(__AVX512F__)
@@ -955,6 +956,60 @@ void Simulation::internal_forces(std::vector<double>& fx, std::vector<double>& f
     fy[b] -= F * dy / l;
     fz[b] -= F * dz / l;
   }
+}
+
+namespace {
+template <class T> void put(std::string& out, const T& v) {
+  out.append(reinterpret_cast<const char*>(&v), sizeof v);
+}
+template <class T> void put_vec(std::string& out, const std::vector<T>& v) {
+  put(out, static_cast<std::uint64_t>(v.size()));
+  out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
+template <class T> void get(const std::string& in, std::size_t& pos, T& v) {
+  if (pos + sizeof v > in.size())
+    throw InputError("checkpoint: truncated");
+  std::memcpy(&v, in.data() + pos, sizeof v);
+  pos += sizeof v;
+}
+template <class T> void get_vec(const std::string& in, std::size_t& pos, std::vector<T>& v) {
+  std::uint64_t n = 0;
+  get(in, pos, n);
+  if (n != v.size())
+    throw InputError(
+        fmt::format("checkpoint: an array has {} entries, this case needs {}", n, v.size()));
+  if (pos + n * sizeof(T) > in.size())
+    throw InputError("checkpoint: truncated");
+  std::memcpy(v.data(), in.data() + pos, n * sizeof(T));
+  pos += n * sizeof(T);
+}
+} // namespace
+
+void Simulation::save_state(std::string& out) const {
+  put(out, step_);
+  put(out, dt_);
+  put(out, ledger_.state());
+  put(out, report_);
+  for (const auto* v : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &h_})
+    put_vec(out, *v);
+  put_vec(out, row_damaged_);
+}
+
+void Simulation::load_state(const std::string& in, std::size_t& pos) {
+  double dt = 0.0;
+  get(in, pos, step_);
+  get(in, pos, dt);
+  if (dt != dt_)
+    throw InputError(fmt::format("checkpoint: its time step {:.17g} s differs from this case's "
+                                 "{:.17g} s",
+                                 dt, dt_));
+  std::array<double, 3> ledger{};
+  get(in, pos, ledger);
+  ledger_.set_state(ledger);
+  get(in, pos, report_);
+  for (auto* v : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &h_})
+    get_vec(in, pos, *v);
+  get_vec(in, pos, row_damaged_);
 }
 
 std::uint64_t Simulation::broken_count() const {

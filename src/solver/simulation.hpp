@@ -130,6 +130,12 @@ public:
     return px_.empty() ? Vec3{} : Vec3{px_[node], py_[node], pz_[node]};
   }
 
+  // The state a run needs to continue bit for bit (displacements u_n and u_{n-1}, histories,
+  // step, energy accumulators), appended to / read from a byte buffer. Events must have been
+  // taken. load_state throws InputError if the buffer does not fit this lattice.
+  void save_state(std::string& out) const;
+  void load_state(const std::string& in, std::size_t& pos);
+
   std::uint64_t broken_count() const;
   std::uint64_t softening_count() const;
   // Bytes per module held by the simulation's arrays (the state and what the step loop reads).
