@@ -106,6 +106,13 @@ expect_resume_error "the case file changed since the checkpoint" "a changed case
 "$LDEM" resume "$T/nowhere" >/dev/null 2>"$T/stderr"
 [ $? -eq 2 ] && grep -q "no checkpoint to resume from" "$T/stderr" && ok || bad "resume without a checkpoint"
 
+# A numerical blow-up (an absurd imposed velocity) is caught within 10 steps, with its node.
+sed 's/^value = \[0.0, 0.0, 0.02\]/value = [0.0, 0.0, 1.0e300]/' "$GOOD" >"$T/blowup.toml"
+"$LDEM" run "$T/blowup.toml" --out "$T/blowup" --no-plot >/dev/null 2>"$T/stderr"
+rc=$?
+if [ $rc -eq 3 ] && grep -q "numerical blow-up detected at step [0-9]*" "$T/stderr" && grep -q "node [0-9]* at (" "$T/stderr" &&
+  [ -s "$T/blowup/energy.csv" ]; then ok; else bad "blow-up: rc $rc, $(cat "$T/stderr")"; fi
+
 # A heterogeneous material: fields.csv and fields.png, and the per-bar fields in the VTU.
 sed 's/^Gf = 10.0 .*/Gf = { type = "weibull", mean = 10.0, cv = 0.1, seed = 3 }/; s/^end = 4.0e-3/end = 2.0e-4/' "$GOOD" >"$T/weibull.toml"
 if "$LDEM" run "$T/weibull.toml" --out "$T/weibull" >/dev/null 2>"$T/stderr" && [ -s "$T/weibull/fields.png" ] &&

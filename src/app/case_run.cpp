@@ -621,6 +621,7 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
   auto last_checkpoint = t0;
   const std::uint64_t first = st.next;
   std::uint64_t n = st.next;
+  std::string blow_up;
   for (; n <= steps; ++n) {
     // An interruption stops between steps: the checkpoint holds the state before step n and
     // the outputs hold every row of the steps before it, so a resumed run writes exactly
@@ -634,6 +635,21 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
                   .count() > checkpoint_seconds))) {
       checkpoint(n);
       last_checkpoint = std::chrono::steady_clock::now();
+    }
+    // Every 10 steps, a look for a numerical blow-up (a NaN, or displacements beyond any
+    // physical scale): the run stops with the first bad node, keeping its outputs up to here
+    // and its last checkpoint.
+    if (n % 10 == 0) {
+      const index_t bad = sim.first_bad_node();
+      if (bad < lat.num_nodes()) {
+        const Vec3 x = lat.position(bad), u = sim.displacement(bad);
+        blow_up = fmt::format("numerical blow-up detected at step {} (t = {:.6g} s): node {} at "
+                              "({:g}, {:g}, {:g}) m has displacement ({:g}, {:g}, {:g}) m. "
+                              "Check the case's loads, velocities and material values; the "
+                              "outputs are complete up to the last report before this step",
+                              n, sim.time(), bad, x.x, x.y, x.z, u.x, u.y, u.z);
+        break;
+      }
     }
     const bool report = n % every == 0 || n == steps;
     if (s.output.vtu && (n % vtu_every == 0 || n == steps)) {
@@ -683,6 +699,10 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
                   static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
                   omp_get_max_threads(), st.max_balance, softened, broken, c.precracked.size(),
                   signal ? "true" : "false"));
+  if (!blow_up.empty()) {
+    fmt::print(stderr, "ldem: error: {}\n", blow_up);
+    return 3;
+  }
   if (signal) {
     fmt::print(stderr,
                "ldem: stopped by {} at t = {:.4g} s (step {}); outputs complete up to then and "

@@ -1012,6 +1012,23 @@ void Simulation::load_state(const std::string& in, std::size_t& pos) {
   get_vec(in, pos, row_damaged_);
 }
 
+index_t Simulation::first_bad_node() const {
+  const double limit =
+      1e3 * lat_.L() * static_cast<double>(std::max({lat_.nx(), lat_.ny(), lat_.nz()}));
+  const index_t nn = lat_.num_nodes();
+  // A quick test of the whole field first (NaN and infinity make the sums non-finite or large).
+  double s = 0.0;
+#pragma omp simd reduction(+ : s)
+  for (index_t n = 0; n < nn; ++n)
+    s += std::abs(ux_[n]) + std::abs(uy_[n]) + std::abs(uz_[n]);
+  if (std::isfinite(s) && s <= limit)
+    return nn;
+  for (index_t n = 0; n < nn; ++n)
+    if (!(std::abs(ux_[n]) <= limit && std::abs(uy_[n]) <= limit && std::abs(uz_[n]) <= limit))
+      return n;
+  return nn;
+}
+
 std::uint64_t Simulation::broken_count() const {
   std::uint64_t n = 0;
   for (index_t b = 0; b < lat_.num_bars(); ++b)

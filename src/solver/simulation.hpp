@@ -136,6 +136,10 @@ public:
   void save_state(std::string& out) const;
   void load_state(const std::string& in, std::size_t& pos);
 
+  // The first node whose displacement is not finite or beyond 1e3 times the body's size (a
+  // numerical blow-up), or num_nodes() if none.
+  index_t first_bad_node() const;
+
   std::uint64_t broken_count() const;
   std::uint64_t softening_count() const;
   // Bytes per module held by the simulation's arrays (the state and what the step loop reads).
