@@ -10,6 +10,7 @@ PKGS=(
   python3-vtk9                     # tests: an independent reader of the VTU/PVD output
   libgtest-dev libgmock-dev        # tests
   libbenchmark-dev                 # microbenchmarks (bench/micro.cpp)
+  clang libclang-rt-14-dev         # tests: libFuzzer with sanitizers on the case reader
 )
 missing=()
 for p in "${PKGS[@]}"; do

@@ -185,3 +185,23 @@ TEST(CaseFile, BadFieldIsNamed) {
 
 } // namespace
 } // namespace ldem
+
+namespace ldem {
+namespace {
+
+// Found by fuzzing: a non-ASCII character in a number reached undefined behaviour inside the
+// TOML parser; such characters are refused outside strings and comments, with the line.
+TEST(CaseFile, NonAsciiOutsideStringsIsRefused) {
+  const std::string e = error_of(edit("L = 0.01", "L = 0.0\xd0\x9a"));
+  EXPECT_NE(e.find("case.toml:4: malformed TOML: a non-ASCII character outside a string or "
+                   "comment"),
+            std::string::npos)
+      << e;
+  // In comments and strings they are fine.
+  EXPECT_NO_THROW(parse_case(edit("L = 0.01", "L = 0.01 # \xc3\xa9paisseur"), "case.toml"));
+  const std::string nul = error_of(edit("L = 0.01", std::string("L = 0.01\0", 9)));
+  EXPECT_NE(nul.find("control character (byte 0)"), std::string::npos) << nul;
+}
+
+} // namespace
+} // namespace ldem

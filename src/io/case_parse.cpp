@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <fmt/format.h>
 #include <fstream>
 #include <sstream>
@@ -355,7 +356,81 @@ private:
 
 } // namespace
 
+namespace {
+
+// A case file's structure (keys, numbers, brackets) is ASCII; other characters belong only in
+// strings and comments. Checking this first gives a clear message, and keeps inputs away from
+// a path of the TOML parser (toml++ 3.3) that has undefined behaviour on a non-ASCII
+// character inside a number.
+void check_characters(const std::string& text, const std::string& name) {
+  int line = 1;
+  enum { Code, Comment, Basic, Literal, MultiBasic, MultiLiteral } state = Code;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    auto starts = [&](const char* w) { return text.compare(i, std::strlen(w), w) == 0; };
+    if (c == 0 || (c < 32 && c != '\t' && c != '\n' && c != '\r'))
+      throw InputError(fmt::format("{}:{}: malformed TOML: control character (byte {}) in the "
+                                   "file",
+                                   name, line, static_cast<int>(c)));
+    if (c == '\n') {
+      ++line;
+      if (state == Comment || state == Basic || state == Literal)
+        state = Code; // single-line strings end at the line (the parser reports it if open)
+      continue;
+    }
+    switch (state) {
+    case Code:
+      if (c == '#')
+        state = Comment;
+      else if (starts("\"\"\"")) {
+        state = MultiBasic;
+        i += 2;
+      } else if (starts("'''")) {
+        state = MultiLiteral;
+        i += 2;
+      } else if (c == '"')
+        state = Basic;
+      else if (c == '\'')
+        state = Literal;
+      else if (c > 126)
+        throw InputError(fmt::format("{}:{}: malformed TOML: a non-ASCII character outside a "
+                                     "string or comment",
+                                     name, line));
+      break;
+    case Basic:
+      if (c == '\\')
+        ++i;
+      else if (c == '"')
+        state = Code;
+      break;
+    case Literal:
+      if (c == '\'')
+        state = Code;
+      break;
+    case MultiBasic:
+      if (c == '\\')
+        ++i;
+      else if (starts("\"\"\"")) {
+        state = Code;
+        i += 2;
+      }
+      break;
+    case MultiLiteral:
+      if (starts("'''")) {
+        state = Code;
+        i += 2;
+      }
+      break;
+    case Comment:
+      break;
+    }
+  }
+}
+
+} // namespace
+
 CaseSpec parse_case(const std::string& text, const std::string& name) {
+  check_characters(text, name);
   toml::table root;
   try {
     root = toml::parse(text, name);

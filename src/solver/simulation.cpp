@@ -993,6 +993,16 @@ void Simulation::save_state(std::string& out) const {
   for (const auto* v : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &h_})
     put_vec(out, *v);
   put_vec(out, row_damaged_);
+  // Events logged since they were last taken (written at the next report).
+  std::vector<Event> pending;
+  for (const auto& ev : thread_events_)
+    pending.insert(pending.end(), ev.begin(), ev.end());
+  put(out, static_cast<std::uint64_t>(pending.size()));
+  for (const Event& e : pending) {
+    put(out, e.bar);
+    put(out, e.state);
+    put(out, e.step);
+  }
 }
 
 void Simulation::load_state(const std::string& in, std::size_t& pos) {
@@ -1010,6 +1020,17 @@ void Simulation::load_state(const std::string& in, std::size_t& pos) {
   for (auto* v : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &h_})
     get_vec(in, pos, *v);
   get_vec(in, pos, row_damaged_);
+  std::uint64_t pending = 0;
+  get(in, pos, pending);
+  for (auto& ev : thread_events_)
+    ev.clear();
+  for (std::uint64_t i = 0; i < pending; ++i) {
+    Event e{};
+    get(in, pos, e.bar);
+    get(in, pos, e.state);
+    get(in, pos, e.step);
+    thread_events_[0].push_back(e);
+  }
 }
 
 index_t Simulation::first_bad_node() const {

@@ -131,8 +131,8 @@ public:
   }
 
   // The state a run needs to continue bit for bit (displacements u_n and u_{n-1}, histories,
-  // step, energy accumulators), appended to / read from a byte buffer. Events must have been
-  // taken. load_state throws InputError if the buffer does not fit this lattice.
+  // step, energy accumulators, events not yet taken), appended to / read from a byte buffer.
+  // load_state throws InputError if the buffer does not fit this lattice.
   void save_state(std::string& out) const;
   void load_state(const std::string& in, std::size_t& pos);
 
