@@ -772,8 +772,11 @@ int run_command(const std::string& path, const RunOptions& o) {
   st.case_path = fs::absolute(path).string();
   const std::string text = read_all(path);
   st.case_hash = fnv1a(text.data(), text.size());
-  return run_loop(c, o.out_dir, st, true, o.plots, c.spec.output.checkpoint_every,
-                  c.spec.output.checkpoint_seconds);
+  return run_loop(c, o.out_dir, st, true, o.plots,
+                  o.checkpoint_every >= 0 ? static_cast<std::uint64_t>(o.checkpoint_every)
+                                          : c.spec.output.checkpoint_every,
+                  o.checkpoint_seconds >= 0 ? o.checkpoint_seconds
+                                            : c.spec.output.checkpoint_seconds);
 }
 
 int resume_command(const std::string& out_dir, int threads, bool plots) {

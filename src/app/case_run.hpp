@@ -29,6 +29,8 @@ struct RunOptions {
   int threads = 0;
   bool force = false;
   bool plots = true;
+  long long checkpoint_every = -1;  // steps; < 0: the case's output.checkpoint_every
+  double checkpoint_seconds = -1.0; // < 0: the case's output.checkpoint_seconds
 };
 
 int check_command(const std::string& path);

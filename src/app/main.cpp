@@ -33,6 +33,15 @@ int main(int argc, char** argv) {
   cmd_run->add_flag("--force", run.force, "Write into a non-empty output folder");
   bool no_plot = false;
   cmd_run->add_flag("--no-plot", no_plot, "Do not make the PNG plots");
+  cmd_run
+      ->add_option("--checkpoint-every", run.checkpoint_every,
+                   "Steps between checkpoints (overrides output.checkpoint_every)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_run
+      ->add_option("--checkpoint-seconds", run.checkpoint_seconds,
+                   "Wall-clock seconds between checkpoints (overrides "
+                   "output.checkpoint_seconds; 0: never by time)")
+      ->check(CLI::NonNegativeNumber);
 
   auto* cmd_check = app.add_subcommand(
       "check", "Validate a case and print it resolved (node and bar counts, dt and its limit, "
