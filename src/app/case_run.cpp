@@ -751,15 +751,10 @@ int run_command(const std::string& path, const RunOptions& o) {
     fields.write("bar,x,y,z,E,Gf,e_p,e_r\n");
     std::string rows;
     for (index_t b = 0; b < lat.num_bars(); b += stride) {
-      const BarAddress ad = lat.bar_address(b);
-      const FamilyMaterial& m = sim.table().family(static_cast<int>(ad.family));
-      const double factor = lat.area_factor(ad.family, ad.i, ad.j, ad.k);
-      const BilinearLaw law = sim.table().law(lat, b);
+      const BarTable::Properties p = sim.table().properties(lat, b);
       const Vec3 mid = lat.bar_centre(b);
       rows += fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", b, mid.x, mid.y,
-                          mid.z, law.EA / (m.area * factor),
-                          0.5 * law.EA * law.e_p * law.e_r * law.l0 / (m.area_f * factor), law.e_p,
-                          law.e_r);
+                          mid.z, p.E, p.Gf, p.e_p, p.e_r);
       if (rows.size() > (1u << 20)) {
         fields.write(rows);
         rows.clear();

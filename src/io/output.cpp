@@ -142,12 +142,9 @@ void write_lattice_vtu(const Simulation& sim, const std::string& path) {
     // e_p and e_r.
     std::vector<float> E(nb), Gf(nb);
     for (index_t b = 0; b < nb; ++b) {
-      const BarAddress ad = lat.bar_address(b);
-      const FamilyMaterial& m = sim.table().family(static_cast<int>(ad.family));
-      const double factor = lat.area_factor(ad.family, ad.i, ad.j, ad.k);
-      const BilinearLaw law = sim.table().law(lat, b);
-      E[b] = static_cast<float>(law.EA / (m.area * factor));
-      Gf[b] = static_cast<float>(0.5 * law.EA * law.e_p * law.e_r * law.l0 / (m.area_f * factor));
+      const BarTable::Properties p = sim.table().properties(lat, b);
+      E[b] = static_cast<float>(p.E);
+      Gf[b] = static_cast<float>(p.Gf);
     }
     s += a.add("Float32", "E", 1, E);
     s += a.add("Float32", "Gf", 1, Gf);

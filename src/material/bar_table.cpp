@@ -204,6 +204,15 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
   }
 }
 
+BarTable::Properties BarTable::properties(const Lattice& lat, index_t bar) const {
+  const BarAddress a = lat.bar_address(bar);
+  const FamilyMaterial& m = families_[static_cast<int>(a.family)];
+  const double factor = lat.area_factor(a.family, a.i, a.j, a.k);
+  const BilinearLaw l = law(lat, bar);
+  return {l.EA / (m.area * factor), 0.5 * l.EA * l.e_p * l.e_r * l.l0 / (m.area_f * factor), l.e_p,
+          l.e_r};
+}
+
 BilinearLaw BarTable::law(const Lattice& lat, index_t bar) const {
   const BarAddress a = lat.bar_address(bar);
   const FamilyMaterial& m = families_[static_cast<int>(a.family)];

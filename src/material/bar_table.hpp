@@ -86,6 +86,12 @@ public:
   const std::vector<double>& rho_module() const { return rho_; }
 
   BilinearLaw law(const Lattice& lattice, index_t bar) const;
+  // A bar's material as a user reads it: E, Gf (its dissipation capacity over its fracture
+  // area, eq. 11), e_p and e_r.
+  struct Properties {
+    double E, Gf, e_p, e_r;
+  };
+  Properties properties(const Lattice& lattice, index_t bar) const;
   double area_ratio(BarKind kind) const; // A^f / A
   const DuctilitySummary& ductility_summary() const { return summary_; }
   const MaterialRanges& ranges() const { return ranges_; }
