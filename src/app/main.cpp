@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
   cmd_resume->add_flag("--no-plot", resume_no_plot, "Do not make the PNG plots");
 
   std::string plot_dir;
-  auto* cmd_plot = app.add_subcommand("plot", "Make crack.png and energy.png of an output folder");
+  auto* cmd_plot = app.add_subcommand("plot", "Make crack.png, energy.png (and fields.png) of an output folder");
   cmd_plot->add_option("dir", plot_dir, "Output folder of a run")->required();
 
   auto* cmd_format =
