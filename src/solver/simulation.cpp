@@ -629,33 +629,60 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
 #pragma omp parallel num_threads(threads_) if (lat_.num_bars() > kParallelMinItems)
   {
     const std::int64_t nt = omp_get_num_threads(), t = omp_get_thread_num();
-    auto first = [&](std::int64_t u) { return u * nplanes / nt; };
-    const std::int64_t p0 = first(t), p1 = first(t + 1);
-    // Plane k's bar forces: the top plane of a slab in that thread's third buffer (the next
-    // thread up reads it), the others alternating in its first two.
-    auto buffer = [&](std::int64_t k) {
-      std::int64_t u = t;
-      while (k < first(u))
-        --u;
-      while (k >= first(u + 1))
-        ++u;
-      const std::size_t slot = k == first(u + 1) - 1 ? 2 : static_cast<std::size_t>(k % 2);
-      return plane_buffers_[3 * static_cast<std::size_t>(u) + slot].data();
-    };
-    if (p1 > p0) {
-      double* top = buffer(p1 - 1);
-      for (std::size_t l = planes_[p1 - 1].line_begin; l < planes_[p1 - 1].line_end; ++l)
-        bar_rows(lines_[l].bar_begin, lines_[l].bar_end, top);
-    }
+    if (nplanes < 4 * nt) {
+      // A body thin along z (a plate in x-y): too few planes for slabs, so every plane is
+      // shared out by lines. Node line j needs bar lines j - 1 and j of its plane and the plane
+      // below: each thread first computes its last bar line, the others wait for it, then each
+      // does the rest of its lines; a second barrier closes the plane. The planes' bar forces
+      // go to two buffers shared by all threads, alternating.
+      for (std::int64_t k = 0; k < nplanes; ++k) {
+        const auto nl = static_cast<std::int64_t>(planes_[k].line_end - planes_[k].line_begin);
+        const std::int64_t l0 = static_cast<std::int64_t>(planes_[k].line_begin) + t * nl / nt;
+        const std::int64_t l1 =
+            static_cast<std::int64_t>(planes_[k].line_begin) + (t + 1) * nl / nt;
+        double* s_plane = plane_buffers_[static_cast<std::size_t>(k % 2)].data();
+        const double* s_below =
+            k > 0 ? plane_buffers_[static_cast<std::size_t>((k - 1) % 2)].data() : nullptr;
+        if (l1 > l0)
+          bar_rows(lines_[l1 - 1].bar_begin, lines_[l1 - 1].bar_end, s_plane);
 #pragma omp barrier
-    for (std::int64_t k = p0; k < p1; ++k) {
-      double* s_plane = buffer(k);
-      const double* s_below = k > 0 ? buffer(k - 1) : nullptr;
-      for (std::size_t l = planes_[k].line_begin; l < planes_[k].line_end; ++l) {
-        if (k != p1 - 1)
-          bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane);
-        node_rows_range<Damped, Loads, Report>(lines_[l].node_begin, lines_[l].node_end, s_plane,
-                                               s_below);
+        for (std::int64_t l = l0; l < l1; ++l) {
+          if (l != l1 - 1)
+            bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane);
+          node_rows_range<Damped, Loads, Report>(lines_[l].node_begin, lines_[l].node_end, s_plane,
+                                                 s_below);
+        }
+#pragma omp barrier
+      }
+    } else {
+      auto first = [&](std::int64_t u) { return u * nplanes / nt; };
+      const std::int64_t p0 = first(t), p1 = first(t + 1);
+      // Plane k's bar forces: the top plane of a slab in that thread's third buffer (the next
+      // thread up reads it), the others alternating in its first two.
+      auto buffer = [&](std::int64_t k) {
+        std::int64_t u = t;
+        while (k < first(u))
+          --u;
+        while (k >= first(u + 1))
+          ++u;
+        const std::size_t slot = k == first(u + 1) - 1 ? 2 : static_cast<std::size_t>(k % 2);
+        return plane_buffers_[3 * static_cast<std::size_t>(u) + slot].data();
+      };
+      if (p1 > p0) {
+        double* top = buffer(p1 - 1);
+        for (std::size_t l = planes_[p1 - 1].line_begin; l < planes_[p1 - 1].line_end; ++l)
+          bar_rows(lines_[l].bar_begin, lines_[l].bar_end, top);
+      }
+#pragma omp barrier
+      for (std::int64_t k = p0; k < p1; ++k) {
+        double* s_plane = buffer(k);
+        const double* s_below = k > 0 ? buffer(k - 1) : nullptr;
+        for (std::size_t l = planes_[k].line_begin; l < planes_[k].line_end; ++l) {
+          if (k != p1 - 1)
+            bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane);
+          node_rows_range<Damped, Loads, Report>(lines_[l].node_begin, lines_[l].node_end, s_plane,
+                                                 s_below);
+        }
       }
     }
   }
