@@ -276,7 +276,7 @@ TEST(StableStep, MatchesTheSpecAndBoundsThePaperRule) {
   EXPECT_DOUBLE_EQ(plate_paper.dt(), 0.6);
 }
 
-TEST(StableStep, UnstableStepIsRefusedAndTheLimitIsReal) {
+TEST(StableStep, UnstableStepIsRefusedAndAStepJustBelowStaysBounded) {
   MaterialSpec m = unit_material();
   Simulation ref = make_sim(3, 3, 3, 1.0, m);
   const double limit = ref.stable_step().dt;
