@@ -5,6 +5,7 @@ PKGS=(
   cmake ninja-build g++            # build
   libcli11-dev libfmt-dev          # command line, formatting
   libtomlplusplus-dev              # case files
+  nlohmann-json3-dev               # summary.json read and updated by the analyses
   libfftw3-dev pkgconf             # correlated random fields (FFT); pkg-config finds FFTW
   python3-matplotlib python3-numpy # PNG plots of a run
   python3-vtk9                     # tests: an independent reader of the VTU/PVD output

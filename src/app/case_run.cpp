@@ -1,5 +1,6 @@
 #include "app/case_run.hpp"
 
+#include "analysis/crack.hpp"
 #include "io/output.hpp"
 #include "util/error.hpp"
 
@@ -81,9 +82,11 @@ std::string dofs_text(DofMask m) {
 
 } // namespace
 
-BuiltCase build_case(const std::string& path) {
+BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&)>& adjust) {
   BuiltCase c;
   c.spec = read_case(path);
+  if (adjust)
+    adjust(c.spec);
   const CaseSpec& s = c.spec;
   try {
     Lattice lat(s.nx, s.ny, s.nz, s.L);
@@ -309,6 +312,7 @@ std::string resolved_case_toml(const BuiltCase& c) {
   root.insert("time", toml::table{{"end", s.end_time},
                                   {"rule", rule},
                                   {"safety", s.step.safety},
+                                  {"courant", s.step.courant},
                                   {"dt", sim.dt()},
                                   {"damping", s.damping}});
   root.insert("output",
@@ -318,8 +322,19 @@ std::string resolved_case_toml(const BuiltCase& c) {
                           {"plots", s.output.plots}});
   if (!probes.empty())
     root.insert("probe", probes);
+  {
+    toml::table an{{"crack", s.analysis.crack}};
+    if (s.analysis.min_branch_length > 0)
+      an.insert("min_branch_length", s.analysis.min_branch_length);
+    if (s.analysis.branch_fit_length > 0)
+      an.insert("branch_fit_length", s.analysis.branch_fit_length);
+    if (s.analysis.speed_window > 0)
+      an.insert("speed_window", s.analysis.speed_window);
+    root.insert("analysis", an);
+  }
   const DuctilitySummary& k = sim.table().ductility_summary();
-  const double c_bar = std::sqrt(s.material.E / s.material.rho);
+  // c of the stiffest bars, as the paper's step rule takes it.
+  const double c_bar = std::sqrt(sim.table().ranges().E[1] / s.material.rho);
   root.insert("resolved",
               toml::table{{"nodes", static_cast<std::int64_t>(sim.lattice().num_nodes())},
                           {"bars", static_cast<std::int64_t>(sim.lattice().num_bars())},
@@ -710,6 +725,8 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
                signal == SIGTERM ? "SIGTERM" : "SIGINT", sim.time(), n, out_dir, out_dir, out_dir);
     return signal == SIGTERM ? 143 : 130;
   }
+  if (s.analysis.crack)
+    analyze_crack_dir(out_dir);
   if (plots && s.output.plots)
     plot_command(out_dir);
   fmt::print(stderr, "ldem: done: {} steps in {:.1f} s, results in {}\n", done, wall, out_dir);
@@ -730,7 +747,7 @@ int run_command(const std::string& path, const RunOptions& o) {
   catch_stop_signals();
   if (o.threads > 0)
     omp_set_num_threads(o.threads);
-  BuiltCase c = build_case(path);
+  BuiltCase c = build_case(path, o.adjust);
   prepare_output(o.out_dir, o.force);
   for (const std::string& w : c.warnings)
     fmt::print(stderr, "ldem: warning: {}\n", w);

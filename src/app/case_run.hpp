@@ -4,6 +4,7 @@
 #include "io/case_spec.hpp"
 #include "solver/simulation.hpp"
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,8 +22,10 @@ struct BuiltCase {
   std::vector<std::string> warnings;
 };
 
-// Builds everything a run needs; bad input throws InputError naming the case file.
-BuiltCase build_case(const std::string& path);
+// Builds everything a run needs; bad input throws InputError naming the case file. `adjust`,
+// if given, changes the case after it is read (ensemble perturbations).
+BuiltCase build_case(const std::string& path,
+                     const std::function<void(CaseSpec&)>& adjust = nullptr);
 
 struct RunOptions {
   std::string out_dir;
@@ -31,6 +34,7 @@ struct RunOptions {
   bool plots = true;
   long long checkpoint_every = -1;  // steps; < 0: the case's output.checkpoint_every
   double checkpoint_seconds = -1.0; // < 0: the case's output.checkpoint_seconds
+  std::function<void(CaseSpec&)> adjust; // applied to the case after reading (ensembles)
 };
 
 int check_command(const std::string& path);

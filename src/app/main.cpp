@@ -1,6 +1,8 @@
 // The ldem command line.
 #include "app/bench.hpp"
+#include "analysis/crack.hpp"
 #include "app/case_run.hpp"
+#include "app/ensemble.hpp"
 #include "io/case_spec.hpp"
 #include "util/error.hpp"
 
@@ -63,6 +65,33 @@ int main(int argc, char** argv) {
   auto* cmd_plot = app.add_subcommand("plot", "Make crack.png, energy.png (and fields.png) of an output folder");
   cmd_plot->add_option("dir", plot_dir, "Output folder of a run")->required();
 
+  std::string analyze_what, analyze_dir;
+  auto* cmd_analyze = app.add_subcommand(
+      "analyze", "Analyse a run's output folder: `ldem analyze crack DIR` finds the crack path, "
+                 "the tip and its speed, and branching (crack_tip.csv, analysis.crack in "
+                 "summary.json)");
+  cmd_analyze->add_option("what", analyze_what, "What to analyse")
+      ->required()
+      ->check(CLI::IsMember({"crack"}));
+  cmd_analyze->add_option("dir", analyze_dir, "Output folder of a run")->required();
+
+  ldem::EnsembleOptions ens;
+  bool ens_no_plot = false;
+  auto* cmd_ensemble = app.add_subcommand(
+      "ensemble", "Run each case several times under admissible perturbations (step between 0.5 "
+                  "and 0.6 L/c, a 1e-12 relative change of the imposed velocities, the pre-crack "
+                  "mirrored about its node plane), analyse every crack, and tabulate them with "
+                  "their median and range (ensemble.md, ensemble.csv)");
+  cmd_ensemble->add_option("cases", ens.cases, "Case files (TOML)")->required();
+  cmd_ensemble->add_option("--runs", ens.runs, "Runs per case")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  cmd_ensemble->add_option("--out", ens.out_dir, "Output folder")->capture_default_str();
+  cmd_ensemble->add_option("--threads", ens.threads, "OpenMP threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_ensemble->add_flag("--force", ens.force, "Write into a non-empty output folder");
+  cmd_ensemble->add_flag("--no-plot", ens_no_plot, "Do not make the PNG plots");
+
   auto* cmd_format =
       app.add_subcommand("case-format", "Print the case-file reference (docs/case-format.md)");
 
@@ -108,6 +137,15 @@ int main(int argc, char** argv) {
       return ldem::check_command(case_path);
     if (cmd_plot->parsed())
       return ldem::plot_command(plot_dir);
+    if (cmd_ensemble->parsed()) {
+      ens.plots = !ens_no_plot;
+      return ldem::ensemble_command(ens);
+    }
+    if (cmd_analyze->parsed()) {
+      const ldem::CrackAnalysis r = ldem::analyze_crack_dir(analyze_dir);
+      fmt::print("{}\n", ldem::crack_report(r));
+      return 0;
+    }
     if (cmd_format->parsed()) {
       std::cout << ldem::case_format_markdown();
       return 0;

@@ -92,7 +92,8 @@ const std::vector<KeyDecl>& case_keys() {
     {"precrack", "nudge", "bool", "false", "", -kInf, kInf, false, false, "", "Move a rectangle lying on a plane of nodes by L/4 along its normal instead of refusing it."},
 
     {"time", "end", "float", "required", "s", 0, kInf, true, false, "", "Simulated time."},
-    {"time", "rule", "string", "\"safety\"", "", -kInf, kInf, false, false, "\"safety\", \"dt\", \"paper\"", "Time step: a fraction of the stable step, a given dt, or the paper's 0.6 L / sqrt(E / rho); a step above the stable limit is refused."},
+    {"time", "rule", "string", "\"safety\"", "", -kInf, kInf, false, false, "\"safety\", \"dt\", \"paper\"", "Time step: a fraction of the stable step, a given dt, or the paper's courant L / c with c = sqrt(E / rho) of the stiffest bars (0.6 L / c in the paper); a step above the stable limit is refused."},
+    {"time", "courant", "float", "0.6", "", 0, 1, true, false, "", "Courant number of rule = \"paper\" (dt = courant L / c)."},
     {"time", "safety", "float", "0.9", "", 0, 1, true, false, "", "Fraction of the stable step (rule = \"safety\")."},
     {"time", "dt", "float", "-", "s", 0, kInf, true, false, "", "Time step (rule = \"dt\")."},
     {"time", "damping", "float", "0", "1/s", 0, kInf, false, false, "", "Mass-proportional damping coefficient a (C = a M)."},
@@ -104,6 +105,11 @@ const std::vector<KeyDecl>& case_keys() {
 
     {"output", "checkpoint_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between checkpoints in checkpoint/ (0: by wall time only). A stop by Ctrl-C or SIGTERM always leaves one; `ldem resume DIR` continues."},
     {"output", "checkpoint_seconds", "float", "600", "s", 0, kInf, false, false, "", "Wall-clock seconds between checkpoints (0: never by time)."},
+
+    {"analysis", "crack", "bool", "false", "", -kInf, kInf, false, false, "", "After the run, analyse the crack (as `ldem analyze crack DIR`): crack_tip.csv and `analysis.crack` in summary.json."},
+    {"analysis", "min_branch_length", "float", "-", "m", 0, kInf, true, false, "", "Default 6 L. A branch must run at least this far beyond its bifurcation (shorter side cracks are not branches)."},
+    {"analysis", "branch_fit_length", "float", "-", "m", 0, kInf, true, false, "", "Default 10 L. Branch angles: a straight line fitted over this length of each branch from its bifurcation."},
+    {"analysis", "speed_window", "float", "-", "s", 0, kInf, true, false, "", "Default 4 L / c_R (c_R: Rayleigh speed of the mean E). Crack speed: centred difference of the crack's extent over plus and minus this time."},
 
     {"probe", "name", "string", "required", "", -kInf, kInf, false, false, "", "Column name in probes.csv."},
     {"probe", "kind", "string", "required", "", -kInf, kInf, false, false, "\"bar_force\", \"reaction\", \"load\"", "What to record."},
@@ -121,7 +127,8 @@ std::string case_format_markdown() {
       "# Case file format\n\n"
       "A case is a TOML file. This page is generated from the declarations in\n"
       "`src/io/case_keys.cpp` (`ldem case-format` prints it). Unknown keys are errors.\n"
-      "Tables: `[case]`, `[lattice]`, `[material]`, `[time]`, `[output]`; arrays of tables:\n"
+      "Tables: `[case]`, `[lattice]`, `[material]`, `[time]`, `[output]`, `[analysis]`; arrays\n"
+      "of tables:\n"
       "`[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`, `[[precrack]]`, `[[probe]]`;\n"
       "a velocity or load may carry `function = [{ type = ..., ... }, ...]`, whose terms are\n"
       "summed. Coordinates are in metres from the box's corner at the origin; the box spans\n"

@@ -47,7 +47,7 @@ std::vector<std::string> split_choices(const std::string& choices) {
   return out;
 }
 
-const char* kTopTables[] = {"case", "lattice", "material", "time", "output"};
+const char* kTopTables[] = {"case", "lattice", "material", "time", "output", "analysis"};
 const char* kArrayTables[] = {"node_set", "fixed", "velocity", "load", "precrack", "probe"};
 
 class Reader {
@@ -636,6 +636,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
                 : rule == "paper" ? TimeStep::Rule::Paper
                                   : TimeStep::Rule::Safety;
   c.step.safety = r.get_float(time, "time", "safety", "time.");
+  c.step.courant = r.get_float(time, "time", "courant", "time.");
   if (const auto dt = r.opt_float(time, "time", "dt", "time.")) {
     if (c.step.rule != TimeStep::Rule::Given)
       r.fail(time.get("dt"), "time.dt", "given, but rule is not \"dt\"; set rule = \"dt\"");
@@ -655,6 +656,15 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.output.checkpoint_every =
       static_cast<std::uint64_t>(r.get_int(out, "output", "checkpoint_every", "output."));
   c.output.checkpoint_seconds = r.get_float(out, "output", "checkpoint_seconds", "output.");
+
+  const toml::table& an = table("analysis");
+  r.check_known(an, "analysis", "analysis.");
+  c.analysis.crack = r.get_bool(an, "analysis", "crack", "analysis.");
+  c.analysis.min_branch_length =
+      r.opt_float(an, "analysis", "min_branch_length", "analysis.").value_or(0.0);
+  c.analysis.branch_fit_length =
+      r.opt_float(an, "analysis", "branch_fit_length", "analysis.").value_or(0.0);
+  c.analysis.speed_window = r.opt_float(an, "analysis", "speed_window", "analysis.").value_or(0.0);
 
   std::vector<std::string> load_names;
   for (const LoadSpec& l : c.loads)

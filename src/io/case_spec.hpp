@@ -65,6 +65,14 @@ struct OutputSpec {
   double checkpoint_seconds = 600.0;  // wall-clock seconds between checkpoints (0: never)
 };
 
+// What `ldem run` analyses after the run ([analysis]); lengths 0 mean the default (in L).
+struct AnalysisSpec {
+  bool crack = false;
+  double min_branch_length = 0.0; // m (0: 6 L)
+  double branch_fit_length = 0.0; // m (0: 10 L)
+  double speed_window = 0.0;      // s (0: 4 L / c_R)
+};
+
 struct CaseSpec {
   std::string file; // the case file's path, for messages
   std::string title;
@@ -85,6 +93,7 @@ struct CaseSpec {
   TimeStep step;
   double damping = 0.0;
   OutputSpec output;
+  AnalysisSpec analysis;
   std::vector<ProbeSpec> probes;
 };
 

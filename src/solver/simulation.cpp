@@ -100,7 +100,9 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
       held_[n] |= bit;
   }
   stable_ = compute_stable_step(lat_, table_, mass_, held_);
-  const double c = std::sqrt(table_.spec().E / table_.spec().rho);
+  // The bar wave speed of the stiffest material in the body: with a graded or random E the
+  // paper's rule is taken at the largest E, where the stable step is smallest.
+  const double c = std::sqrt(table_.ranges().E[1] / table_.spec().rho);
   switch (opt_.step.rule) {
   case TimeStep::Rule::Safety:
     if (!(opt_.step.safety > 0.0 && opt_.step.safety <= 1.0))
@@ -112,7 +114,10 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     dt_ = opt_.step.dt;
     break;
   case TimeStep::Rule::Paper:
-    dt_ = 0.6 * lat_.L() / c;
+    if (!(opt_.step.courant > 0.0 && opt_.step.courant <= 1.0))
+      throw InputError(fmt::format(
+          "time step courant number: expected a value in (0, 1], got {:g}", opt_.step.courant));
+    dt_ = opt_.step.courant * lat_.L() / c;
     break;
   }
   if (!(dt_ > 0.0) || !std::isfinite(dt_))

@@ -62,6 +62,7 @@ struct TimeStep {
   Rule rule = Rule::Safety;
   double safety = 0.9; // fraction of the stable step (Rule::Safety)
   double dt = 0.0;     // Rule::Given
+  double courant = 0.6; // Rule::Paper: dt = courant L / c, c = sqrt(E_max / rho)
 };
 
 struct SolverOptions {

@@ -2,14 +2,21 @@
 """Pictures of an ldem output folder: crack.png, energy.png and, for heterogeneous materials,
 fields.png.
 
-usage: ldem_plot.py DIR   (run by `ldem run` at the end, or `ldem plot DIR`)
+usage: ldem_plot.py DIR              (run by `ldem run` at the end, or `ldem plot DIR`)
+       ldem_plot.py --ensemble DIR   (run by `ldem ensemble` at the end)
 
 crack.png: the bars that softened (grey) and broke (black) during the run, drawn at their
 centres on the body seen face on (the plane of its two largest extents), with the pre-cracks
 in red; energy.png: every term of the energy balance against time, and the balance error; fields.png: for each property that varies, its histogram over
 the bars (with the target Weibull density for random fields) and its map over the body seen
-face on.
+face on; crack_speed.png (after a crack analysis): the crack tip speed against time with the
+Rayleigh speed marked, and the crack length.
+
+With --ensemble, DIR holds one folder per case with runs run_00, run_01, ...: the pictures
+compare the cases' first runs (crack patterns side by side; elastic, kinetic and dissipated
+energies, one figure each; crack tip speeds).
 """
+import json
 import csv
 import os
 import sys
@@ -33,7 +40,16 @@ def save(fig, path):
     os.replace(tmp, path)
 
 
-def crack_png(d, case):
+def crack_analysis(d):
+    path = os.path.join(d, "summary.json")
+    if not os.path.isfile(path):
+        return None
+    with open(path) as f:
+        return json.load(f).get("analysis", {}).get("crack")
+
+
+def draw_crack(ax, d, case, legend=True):
+    """The crack pattern of run folder d on ax; returns the plane's axes."""
     n = case["lattice"]["modules"]
     L = case["lattice"]["L"]
     ext = [n[i] * L for i in range(3)]
@@ -46,7 +62,6 @@ def crack_png(d, case):
         (soft if row["event"] == "softening" else broken)[row["bar"]] = p
     for bar in broken:
         soft.pop(bar, None)
-    fig, ax = plt.subplots(figsize=(6.5, 6.5 * ext[b] / ext[a] if ext[a] > 0 else 6.5))
     ax.add_patch(plt.Rectangle((0, 0), ext[a], ext[b], fill=False, lw=0.8, color="0.3"))
     mm = 1e3
     if soft:
@@ -62,16 +77,125 @@ def crack_png(d, case):
         pts = [o, [o[i] + e1[i] for i in range(3)], [o[i] + e1[i] + e2[i] for i in range(3)],
                [o[i] + e2[i] for i in range(3)], o]
         ax.plot([p[a] * mm for p in pts], [p[b] * mm for p in pts], "r-", lw=1.2)
+    an = crack_analysis(d)
+    if an and an.get("branching_point_m") and an.get("plane_axes") == names[a] + names[b]:
+        import math
+        pa, pb = an["branching_point_m"]
+        for br in an["branches"]:
+            if br["level"] != 1:
+                continue
+            th = math.radians(br["angle_deg"])
+            sense = 1.0 if an["precrack_tip_m"] >= an["mouth_m"] else -1.0
+            ln = an["branch_fit_length_m"]
+            ax.plot([pa * mm, (pa + sense * ln * math.cos(th)) * mm],
+                    [pb * mm, (pb + ln * math.sin(th)) * mm], "-", color="tab:blue", lw=1.5)
+        ax.plot([pa * mm], [pb * mm], "o", color="tab:blue", ms=5)
+        ax.plot([], [], "o", color="tab:blue", ms=1.5,
+                label=f"branching at {an['branching_length_m'] * mm:.3g} mm, "
+                + ", ".join(f"{br['angle_deg']:+.0f}" for br in an["branches"]
+                            if br["level"] == 1) + " deg")
     ax.set_xlim(0, ext[a] * mm)
     ax.set_ylim(0, ext[b] * mm)
     ax.set_aspect("equal")
     ax.set_xlabel(f"{names[a]} [mm]")
     ax.set_ylabel(f"{names[b]} [mm]")
+    if legend and (soft or broken):
+        ax.legend(loc="upper right", fontsize=7, markerscale=4)
+
+
+def crack_png(d, case):
+    n = case["lattice"]["modules"]
+    L = case["lattice"]["L"]
+    ext = [n[i] * L for i in range(3)]
+    a, b = sorted(sorted(range(3), key=lambda i: -ext[i])[:2])
+    fig, ax = plt.subplots(figsize=(6.5, 6.5 * ext[b] / ext[a] if ext[a] > 0 else 6.5))
+    draw_crack(ax, d, case)
     title = case.get("case", {}).get("title", "")
     ax.set_title((title + "\n" if title else "") + "crack pattern (pre-crack in red)", fontsize=10)
-    if soft or broken:
-        ax.legend(loc="upper right", fontsize=8, markerscale=4)
     save(fig, os.path.join(d, "crack.png"))
+
+
+def crack_speed_png(d):
+    path = os.path.join(d, "crack_tip.csv")
+    an = crack_analysis(d)
+    if not os.path.isfile(path) or not an:
+        return
+    rows = read_csv(path)
+    if not rows:
+        return
+    us = 1e6
+    t = [float(r["time"]) * us for r in rows]
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 6.5), sharex=True)
+    ax.plot(t, [float(r["speed"]) for r in rows], "k-", lw=1, label="crack tip speed")
+    cR = an["rayleigh_speed_m_s"]
+    ax.axhline(cR, color="tab:red", ls="--", lw=1, label=f"Rayleigh speed {cR:.0f} m/s")
+    ax.axhline(0.45 * cR, color="tab:red", ls=":", lw=1, label="0.45 c_R")
+    ax.set_ylabel("speed [m/s]")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    ax.set_title(f"crack tip (speed: centred difference over +-{an['speed_window_s'] * us:.2g} us)",
+                 fontsize=10)
+    ax2.plot(t, [float(r["tip_x"]) * 1e3 for r in rows], "k-", lw=1,
+             label=f"tip {an['plane_axes'][0]}")
+    ax2.plot(t, [float(r["tip_y"]) * 1e3 for r in rows], "k--", lw=1,
+             label=f"tip {an['plane_axes'][1]}")
+    if an.get("branching_length_m") is not None:
+        ax2.axhline(an["branching_point_m"][0] * 1e3, color="tab:blue", lw=0.8,
+                    label="branching point")
+    ax2.set_ylabel("tip position [mm]")
+    ax2.set_xlabel("time [us]")
+    ax2.legend(fontsize=8)
+    ax2.grid(alpha=0.3)
+    save(fig, os.path.join(d, "crack_speed.png"))
+
+
+def ensemble(d):
+    """Pictures comparing the first run of each case of an ensemble folder."""
+    cases = sorted(c for c in os.listdir(d) if os.path.isdir(os.path.join(d, c, "run_00")))
+    if not cases:
+        return
+    runs = [os.path.join(d, c, "run_00") for c in cases]
+    loaded = []
+    for r in runs:
+        with open(os.path.join(r, "case.resolved.toml"), "rb") as f:
+            loaded.append(tomllib.load(f))
+    fig, axes = plt.subplots(1, len(runs), figsize=(4.6 * len(runs), 4.8), squeeze=False)
+    for ax, r, case, name in zip(axes[0], runs, loaded, cases):
+        draw_crack(ax, r, case, legend=True)
+        ax.set_title(case.get("case", {}).get("title", name), fontsize=9)
+    fig.suptitle("final crack patterns (first run of each case; pre-crack in red)", fontsize=11)
+    save(fig, os.path.join(d, "cracks.png"))
+    us = 1e6
+    energies = [read_csv(os.path.join(r, "energy.csv")) for r in runs]
+    for key, label in [("elastic", "elastic energy"), ("kinetic", "kinetic energy"),
+                       ("damage_dissipated", "energy dissipated by damage")]:
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for rows, case, name in zip(energies, loaded, cases):
+            ax.plot([float(x["time"]) * us for x in rows], [float(x[key]) for x in rows],
+                    label=case.get("case", {}).get("title", name))
+        ax.set_xlabel("time [us]")
+        ax.set_ylabel(f"{label} [J]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        save(fig, os.path.join(d, f"{key}.png"))
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    cR = None
+    for r, case, name in zip(runs, loaded, cases):
+        path = os.path.join(r, "crack_tip.csv")
+        if not os.path.isfile(path):
+            continue
+        rows = read_csv(path)
+        ax.plot([float(x["time"]) * us for x in rows], [float(x["speed"]) for x in rows], lw=1,
+                label=case.get("case", {}).get("title", name))
+        an = crack_analysis(r)
+        cR = an["rayleigh_speed_m_s"] if an else cR
+    if cR:
+        ax.axhline(cR, color="tab:red", ls="--", lw=1, label=f"Rayleigh speed {cR:.0f} m/s")
+    ax.set_xlabel("time [us]")
+    ax.set_ylabel("crack tip speed [m/s]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    save(fig, os.path.join(d, "crack_speed.png"))
 
 
 def energy_png(d):
@@ -138,6 +262,9 @@ def fields_png(d, case):
 
 
 def main():
+    if len(sys.argv) == 3 and sys.argv[1] == "--ensemble":
+        ensemble(sys.argv[2])
+        return
     if len(sys.argv) != 2:
         sys.exit(__doc__)
     d = sys.argv[1]
@@ -146,6 +273,7 @@ def main():
     crack_png(d, case)
     energy_png(d)
     fields_png(d, case)
+    crack_speed_png(d)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,727 @@
+// Crack analysis: cells of half a module in the analysis plane hold the broken bars; the crack
+// is the cluster of cells connected to the pre-crack; distances along it come from a shortest
+// path search; shells of equal distance, tracked outwards, show where the crack splits.
+#include "analysis/crack.hpp"
+
+#include "io/output.hpp"
+#include "util/error.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <queue>
+#include <sstream>
+#include <toml++/toml.h>
+
+namespace ldem {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// The cell grid of the analysis plane.
+struct Grid {
+  double a0, n0, h;
+  int ni, nj;
+  int cell(double a, double n) const {
+    const int i = std::clamp(static_cast<int>(std::floor((a - a0) / h)), 0, ni - 1);
+    const int j = std::clamp(static_cast<int>(std::floor((n - n0) / h)), 0, nj - 1);
+    return j * ni + i;
+  }
+  double ca(int c) const { return a0 + (c % ni + 0.5) * h; }
+  double cn(int c) const { return n0 + (c / ni + 0.5) * h; }
+  // Calls f(neighbour, distance) for the cells within `r` cells (Chebyshev) of c.
+  template <class F> void around(int c, int r, F&& f) const {
+    const int i = c % ni, j = c / ni;
+    for (int dj = -r; dj <= r; ++dj)
+      for (int di = -r; di <= r; ++di) {
+        const int ii = i + di, jj = j + dj;
+        if ((di || dj) && ii >= 0 && jj >= 0 && ii < ni && jj < nj)
+          f(jj * ni + ii, h * std::sqrt(static_cast<double>(di * di + dj * dj)));
+      }
+  }
+};
+
+// Cells within this many cells (one module) are connected: a crack is a chain of broken bars
+// whose centres are at most a module apart.
+constexpr int kReach = 2;
+
+// A set of cells of one distance shell, connected within the shell.
+struct Component {
+  int shell = 0;
+  std::vector<int> cells;
+  double min_d = kInf, max_d = 0.0, reach = 0.0;
+  std::vector<int> parents, children;
+};
+
+struct Tracker {
+  const Grid& grid;
+  const std::vector<double>& dist; // per cell, kInf outside the crack
+  const CrackOptions& opt;
+  std::vector<int> comp_of;        // per cell, -1 outside the crack
+  std::vector<Component> comps;
+  std::vector<std::vector<int>> by_shell;
+
+  Tracker(const Grid& g, const std::vector<double>& d, const CrackOptions& o, double w)
+      : grid(g), dist(d), opt(o), comp_of(d.size(), -1) {
+    int max_shell = 0;
+    for (double x : d)
+      if (x < kInf)
+        max_shell = std::max(max_shell, static_cast<int>(x / w));
+    by_shell.resize(static_cast<std::size_t>(max_shell) + 1);
+    std::vector<int> shell_of(d.size(), -1);
+    for (std::size_t c = 0; c < d.size(); ++c)
+      if (d[c] < kInf)
+        shell_of[c] = static_cast<int>(d[c] / w);
+    // Components of each shell (flood fill within the shell), in order of increasing shell.
+    std::vector<int> order;
+    for (std::size_t c = 0; c < d.size(); ++c)
+      if (d[c] < kInf)
+        order.push_back(static_cast<int>(c));
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int x, int y) { return shell_of[x] < shell_of[y]; });
+    for (int seed : order) {
+      if (comp_of[seed] >= 0)
+        continue;
+      const int id = static_cast<int>(comps.size());
+      Component k;
+      k.shell = shell_of[seed];
+      std::vector<int> stack{seed};
+      comp_of[seed] = id;
+      while (!stack.empty()) {
+        const int c = stack.back();
+        stack.pop_back();
+        k.cells.push_back(c);
+        k.min_d = std::min(k.min_d, d[c]);
+        k.max_d = std::max(k.max_d, d[c]);
+        grid.around(c, kReach, [&](int m, double) {
+          if (comp_of[m] < 0 && shell_of[m] == k.shell) {
+            comp_of[m] = id;
+            stack.push_back(m);
+          }
+        });
+      }
+      by_shell[static_cast<std::size_t>(k.shell)].push_back(id);
+      comps.push_back(std::move(k));
+    }
+    // Parents: components of lower shells next to a component's cells.
+    for (std::size_t id = 0; id < comps.size(); ++id) {
+      for (int c : comps[id].cells)
+        grid.around(c, kReach, [&](int m, double) {
+          const int p = comp_of[m];
+          if (p >= 0 && comps[static_cast<std::size_t>(p)].shell < comps[id].shell)
+            comps[id].parents.push_back(p);
+        });
+      auto& ps = comps[id].parents;
+      std::sort(ps.begin(), ps.end());
+      ps.erase(std::unique(ps.begin(), ps.end()), ps.end());
+      for (int p : ps)
+        comps[static_cast<std::size_t>(p)].children.push_back(static_cast<int>(id));
+    }
+    // Reach: the farthest distance along the crack at or beyond a component.
+    for (std::size_t s = by_shell.size(); s-- > 0;)
+      for (int id : by_shell[s]) {
+        Component& k = comps[static_cast<std::size_t>(id)];
+        k.reach = k.max_d;
+        for (int ch : k.children)
+          k.reach = std::max(k.reach, comps[static_cast<std::size_t>(ch)].reach);
+      }
+  }
+
+  // Components reachable from `start` through children, within `allowed`, up to distance
+  // `limit` (min_d <= limit).
+  std::vector<char> closure(const std::vector<int>& start, const std::vector<char>& allowed,
+                            double limit) const {
+    std::vector<char> in(comps.size(), 0);
+    std::vector<int> stack;
+    for (int s : start)
+      if (allowed[static_cast<std::size_t>(s)]) {
+        in[static_cast<std::size_t>(s)] = 1;
+        stack.push_back(s);
+      }
+    while (!stack.empty()) {
+      const int c = stack.back();
+      stack.pop_back();
+      for (int ch : comps[static_cast<std::size_t>(c)].children) {
+        const auto u = static_cast<std::size_t>(ch);
+        if (!in[u] && allowed[u] && comps[u].min_d <= limit) {
+          in[u] = 1;
+          stack.push_back(ch);
+        }
+      }
+    }
+    return in;
+  }
+
+  // The first shell, from `start` outwards within `allowed`, where the crack runs on as two or
+  // more lineages that each go on for min_branch_length and do not meet again within it.
+  // Returns the groups of components (one per branch) at that shell, empty if none.
+  std::vector<std::vector<int>> first_split(const std::vector<int>& start,
+                                            const std::vector<char>& allowed) const {
+    const std::vector<char> region = closure(start, allowed, kInf);
+    int first_shell = static_cast<int>(by_shell.size());
+    for (int s : start)
+      first_shell = std::min(first_shell, comps[static_cast<std::size_t>(s)].shell);
+    for (std::size_t s = static_cast<std::size_t>(std::max(first_shell, 0)); s < by_shell.size();
+         ++s) {
+      std::vector<int> live;
+      for (int id : by_shell[s]) {
+        const Component& k = comps[static_cast<std::size_t>(id)];
+        if (region[static_cast<std::size_t>(id)] && k.reach - k.max_d >= opt.min_branch_length)
+          live.push_back(id);
+      }
+      if (live.size() < 2)
+        continue;
+      // Lineages that meet again within min_branch_length are one crack (a band with an
+      // island of intact bars), not two branches.
+      std::vector<std::vector<char>> ahead;
+      for (int id : live)
+        ahead.push_back(closure({id}, region,
+                                comps[static_cast<std::size_t>(id)].max_d + opt.min_branch_length));
+      std::vector<int> group(live.size());
+      std::iota(group.begin(), group.end(), 0);
+      auto find = [&](int x) {
+        while (group[static_cast<std::size_t>(x)] != x)
+          x = group[static_cast<std::size_t>(x)] =
+              group[static_cast<std::size_t>(group[static_cast<std::size_t>(x)])];
+        return x;
+      };
+      for (std::size_t x = 0; x < live.size(); ++x)
+        for (std::size_t y = x + 1; y < live.size(); ++y)
+          for (std::size_t c = 0; c < comps.size(); ++c)
+            if (ahead[x][c] && ahead[y][c]) {
+              group[static_cast<std::size_t>(find(static_cast<int>(x)))] =
+                  find(static_cast<int>(y));
+              break;
+            }
+      std::vector<std::vector<int>> groups;
+      std::vector<int> slot(live.size(), -1);
+      for (std::size_t x = 0; x < live.size(); ++x) {
+        const auto r = static_cast<std::size_t>(find(static_cast<int>(x)));
+        if (slot[r] < 0) {
+          slot[r] = static_cast<int>(groups.size());
+          groups.emplace_back();
+        }
+        groups[static_cast<std::size_t>(slot[r])].push_back(live[x]);
+      }
+      if (groups.size() >= 2)
+        return groups;
+    }
+    return {};
+  }
+};
+
+// A straight line through points by principal axes: centre and unit direction.
+struct Line {
+  double a, n, da, dn;
+};
+
+Line fit_line(const std::vector<std::pair<double, double>>& p) {
+  double ma = 0, mn = 0;
+  for (const auto& [a, n] : p) {
+    ma += a;
+    mn += n;
+  }
+  ma /= static_cast<double>(p.size());
+  mn /= static_cast<double>(p.size());
+  double saa = 0, snn = 0, san = 0;
+  for (const auto& [a, n] : p) {
+    saa += (a - ma) * (a - ma);
+    snn += (n - mn) * (n - mn);
+    san += (a - ma) * (n - mn);
+  }
+  // Direction of the largest eigenvalue of the 2 x 2 scatter matrix.
+  const double th = 0.5 * std::atan2(2.0 * san, saa - snn);
+  return {ma, mn, std::cos(th), std::sin(th)};
+}
+
+} // namespace
+
+CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGeometry& g,
+                            const CrackOptions& o) {
+  CrackAnalysis r;
+  const double h = g.L / 2.0;
+  const Grid grid{g.a_lo - h, g.n_lo - h, h,
+                  static_cast<int>(std::ceil((g.a_hi - g.a_lo) / h)) + 3,
+                  static_cast<int>(std::ceil((g.n_hi - g.n_lo) / h)) + 3};
+  const std::size_t ncell = static_cast<std::size_t>(grid.ni) * static_cast<std::size_t>(grid.nj);
+  const double sense = g.tip_a >= g.mouth_a ? 1.0 : -1.0;
+  const double pre_length = std::abs(g.tip_a - g.mouth_a);
+
+  // Cells: the earliest rupture in each; the pre-crack's cells.
+  std::vector<double> t_cell(ncell, kInf);
+  std::vector<char> pre(ncell, 0);
+  for (const CrackPoint& p : broken) {
+    const auto c = static_cast<std::size_t>(grid.cell(p.a, p.n));
+    t_cell[c] = std::min(t_cell[c], p.t);
+  }
+  const int steps = static_cast<int>(std::ceil(pre_length / (h / 4))) + 1;
+  for (int k = 0; k <= steps; ++k) {
+    const double a = g.mouth_a + (g.tip_a - g.mouth_a) * k / steps;
+    pre[static_cast<std::size_t>(grid.cell(a, g.line_n))] = 1;
+  }
+
+  // When the crack reaches each cell: the earliest time a chain of broken cells links it to
+  // the pre-crack (a minimax path: Dijkstra ordered by arrival time). A cell whose bars broke
+  // more than the speed window before any such chain could reach it broke on its own
+  // (damage along a loaded border, say): it is not part of the crack, and the crack does not
+  // pass through it. Bars broken ahead of the tip by less than that join the crack as its
+  // process zone.
+  const double lead = o.speed_window > 0.0 ? o.speed_window : kInf;
+  std::vector<double> arrival(ncell, kInf);
+  {
+    std::vector<char> excluded(ncell, 0);
+    using Item = std::pair<double, int>;
+    std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
+    for (std::size_t c = 0; c < ncell; ++c)
+      if (pre[c]) {
+        arrival[c] = 0.0;
+        queue.emplace(0.0, static_cast<int>(c));
+      }
+    while (!queue.empty()) {
+      const auto [t, c] = queue.top();
+      queue.pop();
+      if (t > arrival[static_cast<std::size_t>(c)])
+        continue;
+      grid.around(c, kReach, [&](int m, double) {
+        const auto u = static_cast<std::size_t>(m);
+        if (pre[u] || excluded[u] || t_cell[u] == kInf || arrival[u] < kInf)
+          return;
+        if (t_cell[u] < t - lead) {
+          excluded[u] = 1;
+          return;
+        }
+        arrival[u] = std::max(t_cell[u], t);
+        queue.emplace(arrival[u], m);
+      });
+    }
+  }
+
+  // Distance along the crack from the pre-crack (Dijkstra over the cells the crack had reached
+  // by time t_max); returns the farthest cell.
+  std::vector<double> dist(ncell, kInf);
+  auto distances = [&](double t_max) {
+    std::fill(dist.begin(), dist.end(), kInf);
+    using Item = std::pair<double, int>;
+    std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
+    for (std::size_t c = 0; c < ncell; ++c)
+      if (pre[c]) {
+        dist[c] = 0.0;
+        queue.emplace(0.0, static_cast<int>(c));
+      }
+    int far = -1;
+    double far_d = 0.0;
+    while (!queue.empty()) {
+      const auto [d, c] = queue.top();
+      queue.pop();
+      if (d > dist[static_cast<std::size_t>(c)])
+        continue;
+      if (!pre[static_cast<std::size_t>(c)] && d > far_d) {
+        far_d = d;
+        far = c;
+      }
+      grid.around(c, kReach, [&](int m, double step) {
+        const auto u = static_cast<std::size_t>(m);
+        if (arrival[u] < kInf && arrival[u] <= t_max && !pre[u] && d + step < dist[u]) {
+          dist[u] = d + step;
+          queue.emplace(dist[u], m);
+        }
+      });
+    }
+    return std::make_pair(far, far_d);
+  };
+
+  // The tip against time: the farthest point along the crack as it stood at each time (bars
+  // broken ahead of the crack join it only when a path of broken bars reaches them).
+  double t_first = kInf, t_last = 0.0;
+  for (const CrackPoint& p : broken) {
+    t_first = std::min(t_first, p.t);
+    t_last = std::max(t_last, p.t);
+  }
+  if (!broken.empty() && o.speed_window > 0.0) {
+    const double step = o.speed_window / 2.0;
+    std::vector<double> times, extent;
+    std::vector<int> cells;
+    for (double t = t_first - o.speed_window; t <= t_last + o.speed_window + step; t += step) {
+      const auto [c, d] = distances(t);
+      times.push_back(t);
+      extent.push_back(d);
+      cells.push_back(c);
+    }
+    for (std::size_t k = 2; k + 2 < times.size(); ++k) {
+      if (cells[k] < 0)
+        continue; // no crack growth yet
+      const double v = (extent[k + 2] - extent[k - 2]) / (2.0 * o.speed_window);
+      r.tip.push_back({times[k], grid.ca(cells[k]), grid.cn(cells[k]), pre_length + extent[k], v});
+      r.max_speed = std::max(r.max_speed, v);
+    }
+  }
+  const double far = distances(kInf).second;
+  r.final_length = pre_length + far;
+  for (const CrackPoint& p : broken)
+    (dist[static_cast<std::size_t>(grid.cell(p.a, p.n))] < kInf ? r.bars_in_crack
+                                                                 : r.bars_elsewhere)++;
+
+  // Branching: shells one module wide along the crack, tracked outwards.
+  const Tracker tr(grid, dist, o, g.L);
+  if (tr.comps.empty())
+    return r;
+  const std::vector<char> all(tr.comps.size(), 1);
+  std::vector<int> roots(tr.by_shell.front().begin(), tr.by_shell.front().end());
+  const auto groups = tr.first_split(roots, all);
+  if (groups.empty())
+    return r;
+
+  auto near_border = [&](double a, double n) {
+    return a - g.a_lo < g.L || g.a_hi - a < g.L || n - g.n_lo < g.L || g.n_hi - n < g.L;
+  };
+  // One branch: the components reached from its group and from no other group.
+  auto describe = [&](const std::vector<std::vector<int>>& gs, std::size_t which, int level,
+                      const std::vector<char>& allowed, std::vector<char>& own) {
+    own = tr.closure(gs[which], allowed, kInf);
+    for (std::size_t other = 0; other < gs.size(); ++other)
+      if (other != which) {
+        const std::vector<char> theirs = tr.closure(gs[other], allowed, kInf);
+        for (std::size_t c = 0; c < own.size(); ++c)
+          if (theirs[c])
+            own[c] = 0;
+      }
+    double start = kInf;
+    for (int id : gs[which])
+      start = std::min(start, tr.comps[static_cast<std::size_t>(id)].min_d);
+    BranchInfo b;
+    b.level = level;
+    std::vector<std::pair<double, double>> pts;
+    double farthest = -1.0;
+    for (std::size_t id = 0; id < own.size(); ++id) {
+      if (!own[id])
+        continue;
+      for (int c : tr.comps[id].cells) {
+        const double d = dist[static_cast<std::size_t>(c)];
+        if (d <= start + o.fit_length)
+          pts.emplace_back(grid.ca(c), grid.cn(c));
+        if (d > farthest) {
+          farthest = d;
+          b.end_a = grid.ca(c);
+          b.end_n = grid.cn(c);
+        }
+        if (near_border(grid.ca(c), grid.cn(c)))
+          b.opens = true;
+      }
+    }
+    b.length = farthest - start;
+    Line line{0, 0, 1, 0};
+    if (pts.size() >= 2) {
+      line = fit_line(pts);
+      // Point the direction away from the bifurcation, towards the branch's far end.
+      if ((b.end_a - line.a) * line.da + (b.end_n - line.n) * line.dn < 0) {
+        line.da = -line.da;
+        line.dn = -line.dn;
+      }
+    }
+    b.angle_deg = std::atan2(line.dn, sense * line.da) * 180.0 / M_PI;
+    return std::make_pair(b, line);
+  };
+
+  std::vector<Line> lines;
+  std::vector<std::vector<char>> owns(groups.size());
+  for (std::size_t k = 0; k < groups.size(); ++k) {
+    auto [b, line] = describe(groups, k, 1, all, owns[k]);
+    r.branches.push_back(b);
+    lines.push_back(line);
+  }
+  // Order the branches from +n to -n.
+  std::vector<std::size_t> order(groups.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+    return r.branches[x].angle_deg > r.branches[y].angle_deg;
+  });
+
+  // The bifurcation point: where the lines of the two most divergent branches cross, if they
+  // cross within the crack's reach; otherwise the centre of the last shell before the split.
+  const Line& up = lines[order.front()];
+  const Line& down = lines[order.back()];
+  const double det = up.da * (-down.dn) - up.dn * (-down.da);
+  double pa = 0, pn = 0;
+  int split_shell = tr.comps[static_cast<std::size_t>(groups[0][0])].shell;
+  {
+    double sa = 0, sn = 0, w = 0;
+    const std::size_t s = static_cast<std::size_t>(std::max(split_shell - 1, 0));
+    for (int id : tr.by_shell[s])
+      for (int c : tr.comps[static_cast<std::size_t>(id)].cells) {
+        sa += grid.ca(c);
+        sn += grid.cn(c);
+        w += 1;
+      }
+    pa = sa / w;
+    pn = sn / w;
+  }
+  const double angle_gap =
+      r.branches[order.front()].angle_deg - r.branches[order.back()].angle_deg;
+  if (std::abs(det) > 1e-12 && angle_gap > 10.0) {
+    const double ba = down.a - up.a, bn = down.n - up.n;
+    const double s = (ba * (-down.dn) - bn * (-down.da)) / det;
+    const double xa = up.a + s * up.da, xn = up.n + s * up.dn;
+    if (std::hypot(xa - pa, xn - pn) <= o.fit_length) {
+      pa = xa;
+      pn = xn;
+    }
+  }
+  r.branch_a = pa;
+  r.branch_n = pn;
+  r.branching_length = sense * (pa - g.mouth_a);
+  for (const TipSample& s : r.tip) {
+    if (sense * (s.a - pa) > 0.0)
+      break;
+    r.speed_before_branching = std::max(r.speed_before_branching, s.speed);
+  }
+
+  std::vector<BranchInfo> first;
+  for (std::size_t k : order)
+    first.push_back(r.branches[k]);
+  r.branches = first;
+  // Secondary branching: a split within a branch.
+  for (std::size_t k : order) {
+    std::vector<int> start = groups[k];
+    const auto sub = tr.first_split(start, owns[k]);
+    if (sub.empty())
+      continue;
+    r.secondary_branching = true;
+    for (std::size_t j = 0; j < sub.size(); ++j) {
+      std::vector<char> own;
+      r.branches.push_back(describe(sub, j, 2, owns[k], own).first);
+    }
+  }
+  return r;
+}
+
+double rayleigh_speed(double E, double nu, double rho) {
+  // xi = c_R / c_s solves xi^6 - 8 xi^4 + (24 - 16 k) xi^2 - 16 (1 - k) = 0, k = (c_s / c_p)^2
+  // = (1 - 2 nu) / (2 (1 - nu)); the root in (0, 1), by bisection (the cubic in xi^2 is
+  // negative at 0 and positive at 1).
+  const double k = (1.0 - 2.0 * nu) / (2.0 * (1.0 - nu));
+  auto f = [&](double x2) { return x2 * x2 * x2 - 8 * x2 * x2 + (24 - 16 * k) * x2 - 16 * (1 - k); };
+  double lo = 1e-6, hi = 1.0;
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (f(mid) > 0 ? hi : lo) = mid;
+  }
+  const double cs = std::sqrt(E / (2.0 * (1.0 + nu) * rho));
+  return std::sqrt(0.5 * (lo + hi)) * cs;
+}
+
+std::string crack_report(const CrackAnalysis& r) {
+  std::string s = fmt::format("crack: length {:.4g} mm along its path (pre-crack included), "
+                              "{} broken bars in it, {} elsewhere; max speed {:.4g} m/s\n",
+                              r.final_length * 1e3, r.bars_in_crack, r.bars_elsewhere,
+                              r.max_speed);
+  if (!r.branching_length)
+    return s + "no branching";
+  s += fmt::format("first branching at {:.4g} mm from the mouth, point ({:.4g}, {:.4g}) mm; "
+                   "branches:",
+                   *r.branching_length * 1e3, r.branch_a * 1e3, r.branch_n * 1e3);
+  for (const BranchInfo& b : r.branches)
+    s += fmt::format("\n  level {}: {:+.1f} deg, {:.3g} mm long, {}", b.level, b.angle_deg,
+                     b.length * 1e3, b.opens ? "reaches a border" : "arrests inside");
+  s += fmt::format("\nsecondary branching: {}", r.secondary_branching ? "yes" : "no");
+  return s;
+}
+
+namespace {
+
+std::string read_text(const std::string& path, const std::string& what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    throw InputError(fmt::format("{}: cannot read {} (is the folder an ldem output folder?)",
+                                 path, what));
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+double num(const toml::node_view<const toml::node>& v, const std::string& file,
+           const std::string& key) {
+  if (const auto x = v.value<double>())
+    return *x;
+  throw InputError(fmt::format("{}: {}: expected a number, got none", file, key));
+}
+
+} // namespace
+
+CrackAnalysis analyze_crack_dir(const std::string& dir) {
+  const std::string case_file = dir + "/case.resolved.toml";
+  toml::table t;
+  try {
+    t = toml::parse(read_text(case_file, "the resolved case"), case_file);
+  } catch (const toml::parse_error& e) {
+    throw InputError(fmt::format("{}: not a readable resolved case: {}", case_file,
+                                 e.description()));
+  }
+  const toml::table& c = t;
+  const double L = num(c["lattice"]["L"], case_file, "lattice.L");
+  double extent[3];
+  for (int k = 0; k < 3; ++k)
+    extent[k] = num(c["lattice"]["modules"][static_cast<std::size_t>(k)], case_file,
+                    "lattice.modules") *
+                L;
+  const auto* cracks = c["precrack"].as_array();
+  if (!cracks || cracks->empty())
+    throw InputError(fmt::format("{}: the crack analysis measures the crack from a pre-crack, "
+                                 "and this case has no [[precrack]]",
+                                 case_file));
+  const toml::node_view<const toml::node> pc_view{cracks->front()};
+  auto vec = [&](const char* key) {
+    std::array<double, 3> v{};
+    for (int k = 0; k < 3; ++k)
+      v[static_cast<std::size_t>(k)] =
+          num(pc_view[key][static_cast<std::size_t>(k)], case_file, std::string("precrack.") + key);
+    return v;
+  };
+  const auto origin = vec("origin"), e1 = vec("edge1"), e2 = vec("edge2");
+
+  // The analysis plane: the plane-strain axis (or the thinnest one) is projected out.
+  const std::string ps = c["lattice"]["plane_strain"].value_or(std::string("none"));
+  int out = ps == "x" ? 0 : ps == "y" ? 1 : ps == "z" ? 2 : -1;
+  if (out < 0)
+    out = static_cast<int>(std::min_element(extent, extent + 3) - extent);
+  auto inplane = [&](const std::array<double, 3>& e) {
+    double s = 0;
+    for (int k = 0; k < 3; ++k)
+      if (k != out)
+        s += e[static_cast<std::size_t>(k)] * e[static_cast<std::size_t>(k)];
+    return std::sqrt(s);
+  };
+  const auto& edge = inplane(e1) >= inplane(e2) ? e1 : e2;
+  int along = -1;
+  for (int k = 0; k < 3; ++k)
+    if (k != out && (along < 0 || std::abs(edge[static_cast<std::size_t>(k)]) >
+                                      std::abs(edge[static_cast<std::size_t>(along)])))
+      along = k;
+  const int normal = 3 - out - along;
+  const auto A = static_cast<std::size_t>(along), N = static_cast<std::size_t>(normal);
+
+  CrackGeometry g;
+  g.L = L;
+  g.a_lo = 0.0;
+  g.a_hi = extent[along];
+  g.n_lo = 0.0;
+  g.n_hi = extent[normal];
+  const double end0 = origin[A], end1 = origin[A] + edge[A];
+  // The mouth is the end nearer a border of the body; the tip the other one.
+  auto border_gap = [&](double a) { return std::min(std::abs(a - g.a_lo), std::abs(g.a_hi - a)); };
+  const bool first_is_mouth = border_gap(end0) <= border_gap(end1);
+  g.mouth_a = first_is_mouth ? end0 : end1;
+  g.tip_a = first_is_mouth ? end1 : end0;
+  g.line_n = origin[N] + 0.5 * (e1[N] + e2[N]);
+
+  const auto* an = c["analysis"].as_table();
+  auto opt_len = [&](const char* key, double fallback) {
+    if (an)
+      if (const auto v = (*an)[key].value<double>())
+        return *v;
+    return fallback;
+  };
+  const double E_lo = c["material"]["E_range"][0].value_or(0.0);
+  const double E_hi = c["material"]["E_range"][1].value_or(0.0);
+  const double nu = c["material"]["nu"].value_or(0.25);
+  const double rho = c["material"]["rho"].value_or(0.0);
+  const double cR = rayleigh_speed(0.5 * (E_lo + E_hi), nu, rho);
+  CrackOptions o;
+  o.min_branch_length = opt_len("min_branch_length", 6.0 * L);
+  o.fit_length = opt_len("branch_fit_length", 10.0 * L);
+  o.speed_window = opt_len("speed_window", cR > 0 ? 4.0 * L / cR : 0.0);
+
+  // Broken bars from events.csv.
+  const std::string events_file = dir + "/events.csv";
+  std::istringstream ev(read_text(events_file, "the events"));
+  std::string line;
+  std::getline(ev, line);
+  if (line.rfind("bar,event,time,x,y,z", 0) != 0)
+    throw InputError(fmt::format("{}:1: expected the header bar,event,time,x,y,z, got '{}'",
+                                 events_file, line));
+  std::vector<CrackPoint> broken;
+  std::size_t row = 1;
+  while (std::getline(ev, line)) {
+    ++row;
+    if (line.empty())
+      continue;
+    std::array<std::string, 6> f;
+    std::istringstream ls(line);
+    for (auto& x : f)
+      std::getline(ls, x, ',');
+    if (f[1] != "broken")
+      continue;
+    try {
+      const double p[3] = {std::stod(f[3]), std::stod(f[4]), std::stod(f[5])};
+      broken.push_back({std::stod(f[2]), p[along], p[normal]});
+    } catch (const std::exception&) {
+      throw InputError(fmt::format("{}:{}: expected bar,event,time,x,y,z numbers, got '{}'",
+                                   events_file, row, line));
+    }
+  }
+
+  const CrackAnalysis r = analyze_crack(broken, g, o);
+
+  const char axis[3] = {'x', 'y', 'z'};
+  OutputFile tip(dir + "/crack_tip.csv");
+  std::string rows = "time,tip_x,tip_y,speed\n";
+  for (const TipSample& s : r.tip)
+    rows += fmt::format("{:.9g},{:.9g},{:.9g},{:.6g}\n", s.t, s.a, s.n, s.speed);
+  tip.write(rows);
+  tip.commit();
+
+  const std::string summary_file = dir + "/summary.json";
+  nlohmann::ordered_json summary;
+  try {
+    summary = nlohmann::ordered_json::parse(read_text(summary_file, "the run's summary"));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: not readable as JSON: {}", summary_file, e.what()));
+  }
+  nlohmann::ordered_json j;
+  j["branching_length_m"] = r.branching_length ? nlohmann::ordered_json(*r.branching_length)
+                                               : nlohmann::ordered_json(nullptr);
+  nlohmann::ordered_json angles = nlohmann::ordered_json::array();
+  for (const BranchInfo& b : r.branches)
+    if (b.level == 1)
+      angles.push_back(b.angle_deg);
+  j["branch_angles_deg"] = r.branching_length ? angles : nlohmann::ordered_json(nullptr);
+  j["secondary_branching"] = r.secondary_branching;
+  j["max_crack_speed_m_s"] = r.max_speed;
+  j["speed_before_branching_m_s"] =
+      r.branching_length ? nlohmann::ordered_json(r.speed_before_branching)
+                         : nlohmann::ordered_json(nullptr);
+  j["rayleigh_speed_m_s"] = cR;
+  j["max_crack_speed_over_rayleigh"] = cR > 0 ? r.max_speed / cR : 0.0;
+  j["branching_point_m"] =
+      r.branching_length ? nlohmann::ordered_json::array({r.branch_a, r.branch_n})
+                         : nlohmann::ordered_json(nullptr);
+  nlohmann::ordered_json bs = nlohmann::ordered_json::array();
+  for (const BranchInfo& b : r.branches)
+    bs.push_back({{"level", b.level},
+                  {"angle_deg", b.angle_deg},
+                  {"length_m", b.length},
+                  {"opens", b.opens},
+                  {"end_m", {b.end_a, b.end_n}}});
+  j["branches"] = bs;
+  j["final_crack_length_m"] = r.final_length;
+  j["broken_bars_in_crack"] = r.bars_in_crack;
+  j["broken_bars_elsewhere"] = r.bars_elsewhere;
+  j["plane_axes"] = fmt::format("{}{}", axis[along], axis[normal]);
+  j["mouth_m"] = g.mouth_a;
+  j["precrack_tip_m"] = g.tip_a;
+  j["crack_plane_m"] = g.line_n;
+  j["min_branch_length_m"] = o.min_branch_length;
+  j["branch_fit_length_m"] = o.fit_length;
+  j["speed_window_s"] = o.speed_window;
+  if (!summary.contains("analysis") || !summary["analysis"].is_object())
+    summary["analysis"] = nlohmann::ordered_json::object();
+  summary["analysis"]["crack"] = j;
+  write_file(summary_file, summary.dump(2) + "\n");
+  return r;
+}
+
+} // namespace ldem
