@@ -120,6 +120,28 @@ if "$LDEM" run "$T/weibull.toml" --out "$T/weibull" >/dev/null 2>"$T/stderr" && 
   [ "$(head -1 "$T/weibull/fields.csv")" = "bar,x,y,z,E,Gf,e_p,e_r" ] &&
   grep -q 'Name="Gf"' "$T/weibull/lattice_000000.vtu"; then ok; else bad "Weibull fields: $(cat "$T/stderr")"; fi
 
+# The crack analysis: a shipped plate with [analysis] crack = true leaves crack_tip.csv,
+# crack_speed.png and analysis.crack; `ldem analyze crack` on a folder that is not an output
+# folder is an error naming the file.
+FGM="$SRC/cases/fgm_plate/homogeneous.toml"
+if "$LDEM" run "$FGM" --out "$T/fgm" >/dev/null 2>"$T/stderr" &&
+  [ "$(head -1 "$T/fgm/crack_tip.csv")" = "time,tip_x,tip_y,speed" ] && [ -s "$T/fgm/crack_speed.png" ] &&
+  grep -q '"branching_length_m"' "$T/fgm/summary.json" && grep -q '"secondary_branching"' "$T/fgm/summary.json" &&
+  grep -q '"max_crack_speed_m_s"' "$T/fgm/summary.json" && grep -q '"branch_angles_deg"' "$T/fgm/summary.json" &&
+  "$LDEM" analyze crack "$T/fgm" | grep -q "^crack: length"; then ok; else bad "crack analysis: $(cat "$T/stderr")"; fi
+"$LDEM" analyze crack "$T" >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q "case.resolved.toml: cannot read the resolved case" "$T/stderr" && ok || bad "analyze on a non-output folder: rc $rc, $(cat "$T/stderr")"
+
+# An ensemble: its table with median and range, one folder per run; a bad case file stops it
+# before anything is written.
+if "$LDEM" ensemble "$FGM" --runs 2 --no-plot --out "$T/ens" >/dev/null 2>"$T/stderr" &&
+  [ -s "$T/ens/homogeneous/run_01/summary.json" ] && grep -q "^| median" "$T/ens/ensemble.md" &&
+  [ "$(wc -l <"$T/ens/ensemble.csv")" -eq 3 ] && grep -q '"perturbation"' "$T/ens/homogeneous/run_01/summary.json"; then ok; else bad "ensemble: $(cat "$T/stderr")"; fi
+"$LDEM" ensemble "$FGM" "$T/nope.toml" --runs 2 --out "$T/ens_bad" >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && [ ! -e "$T/ens_bad" ] && grep -q "nope.toml: cannot read the case file" "$T/stderr" && ok || bad "ensemble with a bad case: rc $rc, $(cat "$T/stderr")"
+
 # Every shipped case is valid.
 while IFS= read -r c; do
   "$LDEM" check "$c" >/dev/null 2>"$T/stderr" && ok || bad "ldem check $c: $(cat "$T/stderr")"

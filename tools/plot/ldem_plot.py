@@ -151,7 +151,13 @@ def crack_speed_png(d):
 
 def ensemble(d):
     """Pictures comparing the first run of each case of an ensemble folder."""
-    cases = sorted(c for c in os.listdir(d) if os.path.isdir(os.path.join(d, c, "run_00")))
+    cases = []
+    table = os.path.join(d, "ensemble.csv")
+    if os.path.isfile(table):  # in the order the cases were given
+        for row in read_csv(table):
+            if row["case"] not in cases:
+                cases.append(row["case"])
+    cases = [c for c in cases if os.path.isdir(os.path.join(d, c, "run_00"))]
     if not cases:
         return
     runs = [os.path.join(d, c, "run_00") for c in cases]
