@@ -25,10 +25,13 @@ struct PlateRun {
   std::vector<Broken> broken; // in order of time
 };
 
-// Runs a shipped case (with an optional change) into a fresh folder under the test's
-// temporary directory and reads what the tests need.
+// Runs a shipped case (with an optional change) into a fresh temporary folder of its own
+// (tests run in parallel) and reads what the tests need.
 PlateRun run_plate(const std::string& name, const std::function<void(CaseSpec&)>& adjust) {
-  const std::string out = (fs::temp_directory_path() / ("ldem_fgm_" + name)).string();
+  const std::string out =
+      (fs::temp_directory_path() /
+       ("ldem_fgm_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name())))
+          .string();
   fs::remove_all(out);
   RunOptions o;
   o.out_dir = out;
