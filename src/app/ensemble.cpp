@@ -70,11 +70,11 @@ std::string stem_of(const std::string& path) {
   return stem;
 }
 
-nlohmann::json read_json(const std::string& path) {
+nlohmann::ordered_json read_json(const std::string& path) {
   std::ifstream in(path);
   if (!in)
     throw InputError(fmt::format("{}: cannot read", path));
-  return nlohmann::json::parse(in);
+  return nlohmann::ordered_json::parse(in);
 }
 
 // The last row of energy.csv: time, W, U, K, D, Dc, error.
@@ -174,8 +174,7 @@ int ensemble_command(const EnsembleOptions& o) {
       if (rc != 0)
         return rc;
       const std::string summary_file = ro.out_dir + "/summary.json";
-      nlohmann::ordered_json summary = nlohmann::ordered_json::parse(
-          read_json(summary_file).dump()); // keep the key order of the file
+      nlohmann::ordered_json summary = read_json(summary_file); // keeps the file's key order
       summary["perturbation"] = {{"run", i},
                                  {"courant", p.courant},
                                  {"velocity_relative_change", p.velocity_eps},
