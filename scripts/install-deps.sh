@@ -6,6 +6,7 @@ PKGS=(
   libcli11-dev libfmt-dev          # command line, formatting
   libtomlplusplus-dev              # case files
   nlohmann-json3-dev               # summary.json read and updated by the analyses
+  libboost-math-dev                # Student t quantiles (confidence interval of Paris' m)
   libfftw3-dev pkgconf             # correlated random fields (FFT); pkg-config finds FFTW
   python3-matplotlib python3-numpy # PNG plots of a run
   python3-vtk9                     # tests: an independent reader of the VTU/PVD output

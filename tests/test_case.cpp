@@ -205,3 +205,40 @@ TEST(CaseFile, NonAsciiOutsideStringsIsRefused) {
 
 } // namespace
 } // namespace ldem
+
+namespace ldem {
+namespace {
+
+// The analyses are refused before a run when the case cannot give them what they measure.
+TEST(CaseFile, FatigueAnalysisNeedsAPrecrackAndACyclicLoad) {
+  std::string e = error_of(kGood + std::string("\n[analysis]\nfatigue = true\n"));
+  EXPECT_NE(e.find("analysis.fatigue: expected a case with a [[precrack]]"), std::string::npos)
+      << e;
+  const std::string cracked = kGood + std::string(R"(
+[[precrack]]
+name = "notch"
+origin = [-0.001, -0.001, 0.0225]
+edge1 = [0.02, 0.0, 0.0]
+edge2 = [0.0, 0.012, 0.0]
+
+[[load]]
+name = "pull"
+set = "top"
+force = [0.0, 0.0, 10.0]
+function = [{ type = "exp_rise", tau = 1e-5 }]
+)");
+  e = error_of(cracked + "\n[analysis]\nfatigue = true\n");
+  EXPECT_NE(e.find("analysis.fatigue: expected a [[load]] whose function has a \"growing_sine\" "
+                   "term"),
+            std::string::npos)
+      << e;
+  e = error_of(cracked + "\n[analysis]\nfatigue = true\nfatigue_load = \"pul\"\n");
+  EXPECT_NE(e.find("analysis.fatigue_load: expected the name of a [[load]], got \"pul\""),
+            std::string::npos)
+      << e;
+  e = error_of(cracked + "\n[analysis]\nfatigue = true\nfatigue_points = 2\n");
+  EXPECT_NE(e.find("analysis.fatigue_points"), std::string::npos) << e;
+}
+
+} // namespace
+} // namespace ldem

@@ -1,6 +1,7 @@
 #include "app/case_run.hpp"
 
 #include "analysis/crack.hpp"
+#include "analysis/fatigue.hpp"
 #include "io/output.hpp"
 #include "util/error.hpp"
 
@@ -315,6 +316,8 @@ std::string resolved_case_toml(const BuiltCase& c) {
                                   {"courant", s.step.courant},
                                   {"dt", sim.dt()},
                                   {"damping", s.damping}});
+  if (s.stop_displacement > 0)
+    root["time"].as_table()->insert("stop_displacement", s.stop_displacement);
   root.insert("output",
               toml::table{{"energy_every", static_cast<std::int64_t>(s.output.energy_every)},
                           {"vtu_every", static_cast<std::int64_t>(s.output.vtu_every)},
@@ -330,6 +333,16 @@ std::string resolved_case_toml(const BuiltCase& c) {
       an.insert("branch_fit_length", s.analysis.branch_fit_length);
     if (s.analysis.speed_window > 0)
       an.insert("speed_window", s.analysis.speed_window);
+    an.insert("fatigue", s.analysis.fatigue);
+    if (!s.analysis.fatigue_load.empty())
+      an.insert("fatigue_load", s.analysis.fatigue_load);
+    an.insert("fatigue_points", s.analysis.fatigue_points);
+    if (s.analysis.fatigue_band > 0)
+      an.insert("fatigue_band", s.analysis.fatigue_band);
+    if (s.analysis.fatigue_unstable_advance > 0)
+      an.insert("fatigue_unstable_advance", s.analysis.fatigue_unstable_advance);
+    if (s.analysis.fatigue_width > 0)
+      an.insert("fatigue_width", s.analysis.fatigue_width);
     root.insert("analysis", an);
   }
   const DuctilitySummary& k = sim.table().ductility_summary();
@@ -564,7 +577,7 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
   Simulation& sim = *c.sim;
   const Lattice& lat = sim.lattice();
   const std::string dir = out_dir + "/";
-  const auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / sim.dt() - 1e-9));
+  auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / sim.dt() - 1e-9));
   const std::uint64_t every =
       s.output.energy_every ? s.output.energy_every : std::max<std::uint64_t>(1, steps / 500);
   const std::uint64_t vtu_every =
@@ -636,7 +649,7 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
   auto last_checkpoint = t0;
   const std::uint64_t first = st.next;
   std::uint64_t n = st.next;
-  std::string blow_up;
+  std::string blow_up, stopped_by;
   for (; n <= steps; ++n) {
     // An interruption stops between steps: the checkpoint holds the state before step n and
     // the outputs hold every row of the steps before it, so a resumed run writes exactly
@@ -664,6 +677,16 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
                               "outputs are complete up to the last report before this step",
                               n, sim.time(), bad, x.x, x.y, x.z, u.x, u.y, u.z);
         break;
+      }
+      if (s.stop_displacement > 0) {
+        const index_t far = sim.first_node_beyond(s.stop_displacement);
+        if (far < lat.num_nodes()) {
+          const Vec3 x = lat.position(far);
+          stopped_by = fmt::format("node {} at ({:g}, {:g}, {:g}) m moved beyond "
+                                   "time.stop_displacement = {:g} m at t = {:.6g} s",
+                                   far, x.x, x.y, x.z, s.stop_displacement, sim.time());
+          steps = n; // this step is the last: it is reported and written as the run's end
+        }
       }
     }
     const bool report = n % every == 0 || n == steps;
@@ -708,12 +731,13 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
                   "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n"
                   "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
                   "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
-                  "  \"interrupted\": {},\n  \"analysis\": {{}}\n}}\n",
+                  "  \"interrupted\": {},\n  \"stopped_by\": {},\n  \"analysis\": {{}}\n}}\n",
                   st.case_path, s.title, lat.num_nodes(), lat.num_bars(), n, sim.dt(),
                   sim.stable_step().dt, sim.time(), wall,
                   static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
                   omp_get_max_threads(), st.max_balance, softened, broken, c.precracked.size(),
-                  signal ? "true" : "false"));
+                  signal ? "true" : "false",
+                  stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\""));
   if (!blow_up.empty()) {
     fmt::print(stderr, "ldem: error: {}\n", blow_up);
     return 3;
@@ -725,8 +749,12 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
                signal == SIGTERM ? "SIGTERM" : "SIGINT", sim.time(), n, out_dir, out_dir, out_dir);
     return signal == SIGTERM ? 143 : 130;
   }
+  if (!stopped_by.empty())
+    fmt::print(stderr, "ldem: the run ended before time.end: {}\n", stopped_by);
   if (s.analysis.crack)
     analyze_crack_dir(out_dir);
+  if (s.analysis.fatigue)
+    fmt::print(stderr, "ldem: fatigue: {}\n", fatigue_report(analyze_fatigue_dir(out_dir)));
   if (plots && s.output.plots)
     plot_command(out_dir);
   fmt::print(stderr, "ldem: done: {} steps in {:.1f} s, results in {}\n", done, wall, out_dir);

@@ -1,6 +1,7 @@
 // The ldem command line.
 #include "app/bench.hpp"
 #include "analysis/crack.hpp"
+#include "analysis/fatigue.hpp"
 #include "app/case_run.hpp"
 #include "app/ensemble.hpp"
 #include "io/case_spec.hpp"
@@ -69,10 +70,12 @@ int main(int argc, char** argv) {
   auto* cmd_analyze = app.add_subcommand(
       "analyze", "Analyse a run's output folder: `ldem analyze crack DIR` finds the crack path, "
                  "the tip and its speed, and branching (crack_tip.csv, analysis.crack in "
-                 "summary.json)");
+                 "summary.json); `ldem analyze fatigue DIR` measures subcritical growth under a "
+                 "cyclic load: the damage front a(t), a(N), da/dN, Delta K and Paris' law "
+                 "(fatigue.csv, analysis.fatigue in summary.json)");
   cmd_analyze->add_option("what", analyze_what, "What to analyse")
       ->required()
-      ->check(CLI::IsMember({"crack"}));
+      ->check(CLI::IsMember({"crack", "fatigue"}));
   cmd_analyze->add_option("dir", analyze_dir, "Output folder of a run")->required();
 
   ldem::EnsembleOptions ens;
@@ -142,8 +145,10 @@ int main(int argc, char** argv) {
       return ldem::ensemble_command(ens);
     }
     if (cmd_analyze->parsed()) {
-      const ldem::CrackAnalysis r = ldem::analyze_crack_dir(analyze_dir);
-      fmt::print("{}\n", ldem::crack_report(r));
+      if (analyze_what == "fatigue")
+        fmt::print("{}\n", ldem::fatigue_report(ldem::analyze_fatigue_dir(analyze_dir)));
+      else
+        fmt::print("{}\n", ldem::crack_report(ldem::analyze_crack_dir(analyze_dir)));
       return 0;
     }
     if (cmd_format->parsed()) {

@@ -96,6 +96,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"time", "courant", "float", "0.6", "", 0, 1, true, false, "", "Courant number of rule = \"paper\" (dt = courant L / c)."},
     {"time", "safety", "float", "0.9", "", 0, 1, true, false, "", "Fraction of the stable step (rule = \"safety\")."},
     {"time", "dt", "float", "-", "s", 0, kInf, true, false, "", "Time step (rule = \"dt\")."},
+    {"time", "stop_displacement", "float", "-", "m", 0, kInf, true, false, "", "End the run normally, before `end`, once a node moves farther than this from its place (a body that comes apart under loads); the outputs, analyses and plots are made as at `end`, and summary.json records `stopped_by`."},
     {"time", "damping", "float", "0", "1/s", 0, kInf, false, false, "", "Mass-proportional damping coefficient a (C = a M)."},
 
     {"output", "energy_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between rows of energy.csv and probes.csv; 0: about 500 rows."},
@@ -110,6 +111,12 @@ const std::vector<KeyDecl>& case_keys() {
     {"analysis", "min_branch_length", "float", "-", "m", 0, kInf, true, false, "", "Default 6 L. A branch must run at least this far beyond its bifurcation (shorter side cracks are not branches)."},
     {"analysis", "branch_fit_length", "float", "-", "m", 0, kInf, true, false, "", "Default 10 L. Branch angles: a straight line fitted over this length of each branch from its bifurcation."},
     {"analysis", "speed_window", "float", "-", "s", 0, kInf, true, false, "", "Default 4 L / c_R (c_R: Rayleigh speed of the mean E). Crack speed: centred difference of the crack's extent over plus and minus this time."},
+    {"analysis", "fatigue", "bool", "false", "", -kInf, kInf, false, false, "", "After the run, measure subcritical crack growth (as `ldem analyze fatigue DIR`): fatigue.csv, fatigue_front.csv, fatigue_columns.csv and `analysis.fatigue` in summary.json."},
+    {"analysis", "fatigue_load", "string", "-", "", -kInf, kInf, false, false, "", "Default: the first load with a \"growing_sine\" term. The load whose total force over the body's section normal to it is the remote stress, and whose sine counts the cycles (N = 0 when its amplitude becomes constant)."},
+    {"analysis", "fatigue_points", "integer", "10", "", 3, 10000, false, false, "", "Representative points of a(N), evenly spaced in N over the subcritical window at constant amplitude; da/dN between neighbours."},
+    {"analysis", "fatigue_band", "float", "-", "m", 0, kInf, true, false, "", "Default a quarter of the body across the crack. Only bars centred within this distance of the pre-crack's plane make the damage front."},
+    {"analysis", "fatigue_unstable_advance", "float", "-", "m", 0, kInf, true, false, "", "Default a tenth of the width b. A front advance of at least this much within one load period marks the onset of unstable failure."},
+    {"analysis", "fatigue_width", "float", "-", "m", 0, kInf, true, false, "", "Default the body's size along the crack. Width b of the single-edge-cracked plate in Delta K = Delta sigma sqrt(pi a) F(a/b)."},
 
     {"probe", "name", "string", "required", "", -kInf, kInf, false, false, "", "Column name in probes.csv."},
     {"probe", "kind", "string", "required", "", -kInf, kInf, false, false, "\"bar_force\", \"reaction\", \"load\"", "What to record."},

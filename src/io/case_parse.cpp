@@ -631,6 +631,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     r.fail(nullptr, "time", "missing required table [time]");
   r.check_known(time, "time", "time.");
   c.end_time = r.get_float(time, "time", "end", "time.");
+  c.stop_displacement = r.opt_float(time, "time", "stop_displacement", "time.").value_or(0.0);
   const std::string rule = r.get_string(time, "time", "rule", "time.");
   c.step.rule = rule == "dt"      ? TimeStep::Rule::Given
                 : rule == "paper" ? TimeStep::Rule::Paper
@@ -665,6 +666,42 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.analysis.branch_fit_length =
       r.opt_float(an, "analysis", "branch_fit_length", "analysis.").value_or(0.0);
   c.analysis.speed_window = r.opt_float(an, "analysis", "speed_window", "analysis.").value_or(0.0);
+  c.analysis.fatigue = r.get_bool(an, "analysis", "fatigue", "analysis.");
+  c.analysis.fatigue_load = r.opt_string(an, "analysis", "fatigue_load", "analysis.").value_or("");
+  c.analysis.fatigue_points = r.get_int(an, "analysis", "fatigue_points", "analysis.");
+  c.analysis.fatigue_band = r.opt_float(an, "analysis", "fatigue_band", "analysis.").value_or(0.0);
+  c.analysis.fatigue_unstable_advance =
+      r.opt_float(an, "analysis", "fatigue_unstable_advance", "analysis.").value_or(0.0);
+  c.analysis.fatigue_width = r.opt_float(an, "analysis", "fatigue_width", "analysis.").value_or(0.0);
+  // The analyses measure the crack from a pre-crack and the cycles of a load: refuse a case
+  // they cannot analyse before it runs.
+  for (const auto& [on, key] : {std::pair{c.analysis.crack, "crack"},
+                                std::pair{c.analysis.fatigue, "fatigue"}})
+    if (on && c.precracks.empty())
+      r.fail(an.get(key), std::string("analysis.") + key,
+             "expected a case with a [[precrack]] (the analysis measures the crack from it), "
+             "got none");
+  if (c.analysis.fatigue) {
+    auto has_sine = [](const LoadSpec& l) {
+      for (const TimeTerm& term : l.scale.terms())
+        if (std::holds_alternative<GrowingSine>(term))
+          return true;
+      return false;
+    };
+    const LoadSpec* chosen = nullptr;
+    for (const LoadSpec& l : c.loads)
+      if (c.analysis.fatigue_load.empty() ? has_sine(l) : l.name == c.analysis.fatigue_load) {
+        chosen = &l;
+        break;
+      }
+    if (!c.analysis.fatigue_load.empty() && !chosen)
+      r.fail(an.get("fatigue_load"), "analysis.fatigue_load",
+             fmt::format("expected the name of a [[load]], got \"{}\"", c.analysis.fatigue_load));
+    if (!chosen || !has_sine(*chosen))
+      r.fail(an.get("fatigue"), "analysis.fatigue",
+             "expected a [[load]] whose function has a \"growing_sine\" term (its cycles are "
+             "counted), got none");
+  }
 
   std::vector<std::string> load_names;
   for (const LoadSpec& l : c.loads)

@@ -71,6 +71,12 @@ struct AnalysisSpec {
   double min_branch_length = 0.0; // m (0: 6 L)
   double branch_fit_length = 0.0; // m (0: 10 L)
   double speed_window = 0.0;      // s (0: 4 L / c_R)
+  bool fatigue = false;
+  std::string fatigue_load;            // "" : the first load with a growing sine
+  std::int64_t fatigue_points = 10;
+  double fatigue_band = 0.0;           // m (0: a quarter of the body across the crack)
+  double fatigue_unstable_advance = 0.0; // m (0: b / 10)
+  double fatigue_width = 0.0;          // m (0: the body along the crack)
 };
 
 struct CaseSpec {
@@ -90,6 +96,7 @@ struct CaseSpec {
   std::vector<LoadSpec> loads;
   std::vector<PrecrackSpec> precracks;
   double end_time = 0.0;
+  double stop_displacement = 0.0; // m; 0: none
   TimeStep step;
   double damping = 0.0;
   OutputSpec output;

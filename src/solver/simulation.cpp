@@ -1094,8 +1094,11 @@ void Simulation::load_state(const std::string& in, std::size_t& pos) {
 }
 
 index_t Simulation::first_bad_node() const {
-  const double limit =
-      1e3 * lat_.L() * static_cast<double>(std::max({lat_.nx(), lat_.ny(), lat_.nz()}));
+  return first_node_beyond(1e3 * lat_.L() *
+                           static_cast<double>(std::max({lat_.nx(), lat_.ny(), lat_.nz()})));
+}
+
+index_t Simulation::first_node_beyond(double limit) const {
   const index_t nn = lat_.num_nodes();
   // A quick test of the whole field first (NaN and infinity make the sums non-finite or large).
   double s = 0.0;

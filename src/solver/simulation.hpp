@@ -140,6 +140,9 @@ public:
   // The first node whose displacement is not finite or beyond 1e3 times the body's size (a
   // numerical blow-up), or num_nodes() if none.
   index_t first_bad_node() const;
+  // The first node with a displacement component beyond `limit` (or not finite), or
+  // num_nodes() if none.
+  index_t first_node_beyond(double limit) const;
 
   std::uint64_t broken_count() const;
   std::uint64_t softening_count() const;

@@ -12,6 +12,12 @@ the bars (with the target Weibull density for random fields) and its map over th
 face on; crack_speed.png (after a crack analysis): the crack tip speed against time with the
 Rayleigh speed marked, and the crack length.
 
+After a fatigue analysis: fatigue_load.png (remote stress of the cyclic load and the probed
+bar forces against time), fatigue_cracks.png (damage at six moments of the growth),
+fatigue_front.png (time of every bar's first softening and rupture against the x of its
+centre, with the damage front), fatigue_aN.png (a against N with the representative points)
+and fatigue_paris.png (log da/dN against log Delta K with the fitted Paris line).
+
 With --ensemble, DIR holds one folder per case with runs run_00, run_01, ...: the pictures
 compare the cases' first runs (crack patterns side by side; elastic, kinetic and dissipated
 energies, one figure each; crack tip speeds).
@@ -267,6 +273,168 @@ def fields_png(d, case):
     save(fig, os.path.join(d, "fields.png"))
 
 
+def fatigue_analysis(d):
+    path = os.path.join(d, "summary.json")
+    if not os.path.isfile(path):
+        return None
+    with open(path) as f:
+        return json.load(f).get("analysis", {}).get("fatigue")
+
+
+def fatigue_pngs(d, case):
+    fa = fatigue_analysis(d)
+    if not fa or not os.path.isfile(os.path.join(d, "fatigue_front.csv")):
+        return
+    import math
+    tmax = fa["tmax_s"]
+    t_const = fa["constant_amplitude_from_s"]
+    f_load = fa["load_frequency_hz"]
+    marks = [(fa.get("subcritical_start_t_over_tmax"), "subcritical start", "tab:green"),
+             (t_const / tmax, "constant amplitude", "0.4"),
+             (fa.get("unstable_t_over_tmax"), "unstable", "tab:red")]
+
+    def mark(ax, scale=1.0, vertical=True):
+        for v, lab, col in marks:
+            if v is not None and 0 <= v <= 1:
+                (ax.axvline if vertical else ax.axhline)(v * scale, color=col, ls=":", lw=1,
+                                                         label=lab)
+
+    # Loading history and probes (the paper's figure 6, right).
+    probes = read_csv(os.path.join(d, "probes.csv")) if os.path.isfile(
+        os.path.join(d, "probes.csv")) else []
+    if probes:
+        n = case["lattice"]["modules"]
+        L = case["lattice"]["L"]
+        ext = [n[i] * L for i in range(3)]
+        fig, ax = plt.subplots(figsize=(8, 4))
+        ax2 = ax.twinx()
+        t = [float(r["time"]) / tmax for r in probes]
+        loads = {ld["name"]: ld for ld in case.get("load", [])}
+        for pr in case.get("probe", []):
+            col = pr["name"]
+            if col not in probes[0]:
+                continue
+            vals = [float(r[col]) for r in probes]
+            if pr["kind"] == "load" and pr.get("load") in loads:
+                force = loads[pr["load"]]["force"]
+                axis = max(range(3), key=lambda k: abs(force[k]))
+                section = math.prod(ext[k] for k in range(3) if k != axis)
+                ax.plot(t, [abs(v) / section / 1e6 for v in vals], lw=0.5, color="tab:blue",
+                        label=f"remote stress ({pr['load']})")
+            elif pr["kind"] == "bar_force":
+                ax2.plot(t, vals, lw=0.5, color="tab:orange", label=f"bar force ({col})")
+        mark(ax)
+        ax.set_xlabel("t / tmax")
+        ax.set_ylabel("remote stress [MPa]")
+        ax2.set_ylabel("bar force [N]")
+        h1, l1 = ax.get_legend_handles_labels()
+        h2, l2 = ax2.get_legend_handles_labels()
+        ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="lower right")
+        ax.set_title(f"cyclic load at {f_load:g} Hz and the probed bar", fontsize=10)
+        save(fig, os.path.join(d, "fatigue_load.png"))
+
+    # Time against x of first softening (e_p) and rupture (e_r), with the front (figure 8 left).
+    n = case["lattice"]["modules"]
+    L = case["lattice"]["L"]
+    ext = [n[i] * L for i in range(3)]
+    a_ax, b_ax = sorted(sorted(range(3), key=lambda i: -ext[i])[:2])
+    events = read_csv(os.path.join(d, "events.csv"))
+    soft = [(float(r["xyz"[a_ax]]), float(r["time"]) / tmax) for r in events
+            if r["event"] == "softening"]
+    brk = [(float(r["xyz"[a_ax]]), float(r["time"]) / tmax) for r in events
+           if r["event"] == "broken"]
+    front = read_csv(os.path.join(d, "fatigue_front.csv"))
+    fig, ax = plt.subplots(figsize=(7, 5))
+    if soft:
+        ax.scatter(*zip(*soft), s=2, lw=0, c="tab:red", label="reaches e_p")
+    if brk:
+        ax.scatter(*zip(*brk), s=2, lw=0, c="tab:blue", label="reaches e_r")
+    if front:
+        xs, ts = [fa["precrack_length_m"]], [float(front[0]["t"]) / tmax]
+        for r in front:
+            xs += [xs[-1], float(r["a"])]
+            ts += [float(r["t"]) / tmax, float(r["t"]) / tmax]
+        ax.plot(xs, ts, "-", color="tab:green", lw=1.5, label="damage front a(t)")
+    mark(ax, vertical=False)
+    ax.set_xlabel("x of the bar's centre [m]")
+    ax.set_ylabel("t / tmax")
+    ax.set_xlim(0, ext[a_ax])
+    ax.legend(fontsize=7, markerscale=4, loc="lower right")
+    ax.set_title("when each bar softens and breaks (bars within the band around the crack "
+                 "plane make the front)", fontsize=9)
+    save(fig, os.path.join(d, "fatigue_front.png"))
+
+    # Crack configurations at six moments (figure 7 left).
+    t0 = fa.get("subcritical_start_t_over_tmax") or t_const / tmax
+    t1 = fa.get("unstable_t_over_tmax") or 1.0
+    moments = [t0 + (t1 - t0) * k / 4 for k in range(5)] + [1.0]
+    fig, axes = plt.subplots(3, 2, figsize=(10, 10 * ext[b_ax] / ext[a_ax] * 3 / 2 + 1))
+    for ax, tm in zip(axes.flat, moments):
+        s_pts, b_pts = {}, {}
+        for r in events:
+            if float(r["time"]) / tmax <= tm:
+                p = (float(r["xyz"[a_ax]]), float(r["xyz"[b_ax]]))
+                (s_pts if r["event"] == "softening" else b_pts)[r["bar"]] = p
+        for bar in b_pts:
+            s_pts.pop(bar, None)
+        ax.add_patch(plt.Rectangle((0, 0), ext[a_ax], ext[b_ax], fill=False, lw=0.8,
+                                   color="0.3"))
+        if s_pts:
+            ax.scatter(*zip(*s_pts.values()), s=2, lw=0, c="0.6")
+        if b_pts:
+            ax.scatter(*zip(*b_pts.values()), s=3, lw=0, c="k")
+        ax.set_xlim(0, ext[a_ax])
+        ax.set_ylim(0, ext[b_ax])
+        ax.set_aspect("equal")
+        ax.set_title(f"t / tmax = {tm:.3f}: {len(s_pts)} softening, {len(b_pts)} broken",
+                     fontsize=8)
+        ax.tick_params(labelsize=7)
+    fig.suptitle("damage during the growth (grey: softening bars, black: broken)", fontsize=10)
+    save(fig, os.path.join(d, "fatigue_cracks.png"))
+
+    # a against N, and the Paris plot (figure 8 right).
+    rows = read_csv(os.path.join(d, "fatigue.csv"))
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    Ns, As = [], []
+    for r in front:
+        Ns += [float(r["N"])] * 2
+        As += [As[-1] if As else fa["precrack_length_m"], float(r["a"])]
+    if Ns:
+        ax.plot(Ns, As, "-", color="tab:green", lw=1, label="damage front")
+    if rows:
+        ax.plot([float(r["N"]) for r in rows], [float(r["a"]) for r in rows], "o",
+                color="k", ms=4, label="interval midpoints of the representative points")
+    ax.axvline(0.0, color="0.4", ls=":", lw=1, label="constant amplitude (N = 0)")
+    if fa.get("cycles_to_failure") is not None:
+        ax.axvline(fa["cycles_to_failure"], color="tab:red", ls=":", lw=1, label="unstable")
+    ax.set_xlabel("N (cycles at constant amplitude)")
+    ax.set_ylabel("a [m]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    save(fig, os.path.join(d, "fatigue_aN.png"))
+
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    pts = [(float(r["delta_K"]), float(r["da_dN"])) for r in rows
+           if float(r["da_dN"]) > 0 and math.isfinite(float(r["delta_K"]))]
+    if pts:
+        ax.loglog([p[0] for p in pts], [p[1] * 1e6 for p in pts], "o", color="k", ms=5,
+                  label="intervals between representative points")
+    if fa.get("paris_m") is not None and pts:
+        C, m = fa["paris_C"], fa["paris_m"]
+        lo, hi = min(p[0] for p in pts), max(p[0] for p in pts)
+        xs = [lo * (hi / lo) ** (i / 50) for i in range(51)]
+        ci = fa["paris_m_interval"]
+        ax.loglog(xs, [C * x ** m * 1e6 for x in xs], "-", color="tab:red",
+                  label=f"da/dN = {C:.3g} DK^{m:.3g}  (R2 = {fa['paris_r2']:.3f}, "
+                  f"m in [{ci[0]:.2g}, {ci[1]:.2g}])")
+    ax.set_xlabel("Delta K [Pa m^0.5]")
+    ax.set_ylabel("da/dN [um / cycle]")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    ax.set_title("Paris law (Pa, m)" + ("" if pts else ": no growth to fit"), fontsize=10)
+    save(fig, os.path.join(d, "fatigue_paris.png"))
+
+
 def main():
     if len(sys.argv) == 3 and sys.argv[1] == "--ensemble":
         ensemble(sys.argv[2])
@@ -280,6 +448,7 @@ def main():
     energy_png(d)
     fields_png(d, case)
     crack_speed_png(d)
+    fatigue_pngs(d, case)
 
 
 if __name__ == "__main__":
