@@ -209,5 +209,35 @@ TEST(Fatigue, AnalysisRecoversTheParisLawAGrowthWasMadeWith) {
   EXPECT_GT(a_fail, o.tip + 0.05); // the synthetic crack did grow subcritically
 }
 
+// A crack that grows only while the amplitude rises (N < 0) and then arrests: no growth rate
+// at constant amplitude, hence no Paris fit and a note that says why; counted from the first
+// cycle, the same growth gives one.
+TEST(Fatigue, GrowthOnlyUnderTheRisingAmplitudeIsReportedAsSuch) {
+  const double f = 100.0;
+  const FrontOptions o = plate();
+  CyclicLoad load = constant_load(f, 3.0);
+  load.t_cycles = 0.0;
+  load.t_constant = 1.0; // N = 0 at t = 1 s; the crack arrests at t = 0.8 s
+  std::vector<BarEvent> e;
+  for (int c = 20; c < 36; ++c)
+    damage_column(e, o, c, 0.05 * (c - 19));
+  FatigueOptions fo;
+  fo.b = 0.75;
+  fo.unstable_advance = 0.075;
+  const FatigueAnalysis r = analyze_fatigue(e, {}, o, load, fo, 3.0);
+  EXPECT_FALSE(r.unstable_t.has_value());
+  EXPECT_FALSE(r.paris.has_value());
+  EXPECT_NE(r.note.find("the front does not advance at constant amplitude"), std::string::npos)
+      << r.note;
+  EXPECT_DOUBLE_EQ(r.a_at_constant, 36 * o.L);
+  fo.from_first_cycle = true;
+  const FatigueAnalysis g = analyze_fatigue(e, {}, o, load, fo, 3.0);
+  ASSERT_TRUE(g.paris.has_value()) << g.note;
+  // One column per 5 cycles while Delta K grows with a: every interval advanced, and the
+  // rate does not fall as Delta K rises.
+  EXPECT_EQ(g.paris->points, 9u);
+  EXPECT_GE(g.paris->m, 0.0);
+}
+
 } // namespace
 } // namespace ldem

@@ -181,16 +181,26 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
     r.note = "the front does not advance while the load cycles before any unstable failure";
     return r;
   }
-  const double w0 = std::max(*r.subcritical_start_t, load.t_constant);
-  const double w1 = r.unstable_t ? *r.unstable_t : t_end;
-  if (!(w1 > w0 + period) || o.points < 2) {
-    r.note = fmt::format("the subcritical window at constant amplitude is shorter than one "
-                         "cycle ({:.6g} s to {:.6g} s)",
-                         w0, w1);
+  const double w0 =
+      std::max(*r.subcritical_start_t, o.from_first_cycle ? load.t_cycles : load.t_constant);
+  // The window ends at the unstable onset, or, in a run without one, at the front's last
+  // advance (an arrested crack has no growth rate to measure after it).
+  const char* where = o.from_first_cycle ? "while the load cycles" : "at constant amplitude";
+  if (!r.unstable_t && (r.front.empty() || r.front.back().t <= w0)) {
+    r.note = fmt::format("the front does not advance {} (its last advance: t = {:.6g} s, N = "
+                         "{:.1f}); no growth rate to measure",
+                         where, r.front.empty() ? 0.0 : r.front.back().t,
+                         r.front.empty() ? 0.0 : N_of(r.front.back().t));
     return r;
   }
   // The front just before the unstable onset: the last point must not include the jump.
-  const double w1_in = std::nextafter(w1, -1e300);
+  const double w1_in = r.unstable_t ? std::nextafter(*r.unstable_t, -1e300) : r.front.back().t;
+  if (!(w1_in > w0 + period) || o.points < 2) {
+    r.note = fmt::format("the window of subcritical growth {} is shorter than one cycle "
+                         "({:.6g} s to {:.6g} s)",
+                         where, w0, w1_in);
+    return r;
+  }
   for (std::size_t i = 0; i < o.points; ++i) {
     const double t =
         w0 + (w1_in - w0) * static_cast<double>(i) / static_cast<double>(o.points - 1);
@@ -388,7 +398,7 @@ std::string fatigue_report(const FatigueAnalysis& r) {
   return s;
 }
 
-FatigueAnalysis analyze_fatigue_dir(const std::string& dir) {
+FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& window_override) {
   const RunGeometry rg = read_run_geometry(dir, "fatigue analysis");
   const toml::table& c = rg.resolved;
   const auto* an = c["analysis"].as_table();
@@ -429,6 +439,15 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir) {
   o.b = opt("fatigue_width", width);
   o.points = static_cast<std::size_t>(opt("fatigue_points", 10.0));
   o.unstable_advance = opt("fatigue_unstable_advance", 0.1 * width);
+  const std::string window =
+      !window_override.empty()
+          ? window_override
+          : (an ? (*an)["fatigue_window"].value_or(std::string("constant")) : "constant");
+  if (window != "constant" && window != "cycles")
+    throw InputError(fmt::format("fatigue window: expected \"constant\" or \"cycles\", got "
+                                 "\"{}\"",
+                                 window));
+  o.from_first_cycle = window == "cycles";
   const std::string wanted = an ? (*an)["fatigue_load"].value_or(std::string()) : std::string();
   const CyclicLoad load = read_cyclic_load(rg, wanted, t_end);
 
@@ -478,6 +497,7 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir) {
   j["front_at_constant_amplitude_m"] = r.a_at_constant;
   j["final_front_m"] = r.front.empty() ? fo.tip : r.front.back().a;
   j["width_b_m"] = o.b;
+  j["window"] = window;
   j["representative_points"] = o.points;
   j["band_m"] = fo.band;
   j["unstable_advance_m"] = o.unstable_advance;

@@ -76,6 +76,10 @@ struct FatigueOptions {
   std::size_t points = 10;        // representative points of a(N) over the subcritical window
   double unstable_advance = 0.0;  // a front advance within one period that means unstable [m]
   double confidence = 0.95;
+  // The window of representative points: false, the cycles at constant amplitude (N >= 0, as
+  // the paper); true, every cycle from the first (growth under the rising amplitude too, each
+  // interval with its own cycle's stress range).
+  bool from_first_cycle = false;
 };
 
 struct FatigueRow {
@@ -103,7 +107,8 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
 std::string fatigue_report(const FatigueAnalysis& r);
 
 // `ldem analyze fatigue DIR`: reads DIR/case.resolved.toml and DIR/events.csv, writes
-// DIR/fatigue.csv, DIR/fatigue_front.csv and `analysis.fatigue` in DIR/summary.json.
-FatigueAnalysis analyze_fatigue_dir(const std::string& dir);
+// DIR/fatigue.csv, DIR/fatigue_front.csv, DIR/fatigue_columns.csv and `analysis.fatigue` in
+// DIR/summary.json. `window` ("constant" or "cycles") overrides the case's fatigue_window.
+FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& window = "");
 
 } // namespace ldem

@@ -337,6 +337,7 @@ std::string resolved_case_toml(const BuiltCase& c) {
     if (!s.analysis.fatigue_load.empty())
       an.insert("fatigue_load", s.analysis.fatigue_load);
     an.insert("fatigue_points", s.analysis.fatigue_points);
+    an.insert("fatigue_window", s.analysis.fatigue_window);
     if (s.analysis.fatigue_band > 0)
       an.insert("fatigue_band", s.analysis.fatigue_band);
     if (s.analysis.fatigue_unstable_advance > 0)

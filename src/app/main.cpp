@@ -77,6 +77,12 @@ int main(int argc, char** argv) {
       ->required()
       ->check(CLI::IsMember({"crack", "fatigue"}));
   cmd_analyze->add_option("dir", analyze_dir, "Output folder of a run")->required();
+  std::string analyze_window;
+  cmd_analyze->add_option("--window", analyze_window,
+                          "fatigue: representative points over the cycles at constant "
+                          "amplitude (\"constant\") or every cycle (\"cycles\"); default "
+                          "the case's analysis.fatigue_window")
+      ->check(CLI::IsMember({"constant", "cycles"}));
 
   ldem::EnsembleOptions ens;
   bool ens_no_plot = false;
@@ -146,7 +152,7 @@ int main(int argc, char** argv) {
     }
     if (cmd_analyze->parsed()) {
       if (analyze_what == "fatigue")
-        fmt::print("{}\n", ldem::fatigue_report(ldem::analyze_fatigue_dir(analyze_dir)));
+        fmt::print("{}\n", ldem::fatigue_report(ldem::analyze_fatigue_dir(analyze_dir, analyze_window)));
       else
         fmt::print("{}\n", ldem::crack_report(ldem::analyze_crack_dir(analyze_dir)));
       return 0;

@@ -669,6 +669,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.analysis.fatigue = r.get_bool(an, "analysis", "fatigue", "analysis.");
   c.analysis.fatigue_load = r.opt_string(an, "analysis", "fatigue_load", "analysis.").value_or("");
   c.analysis.fatigue_points = r.get_int(an, "analysis", "fatigue_points", "analysis.");
+  c.analysis.fatigue_window = r.get_string(an, "analysis", "fatigue_window", "analysis.");
   c.analysis.fatigue_band = r.opt_float(an, "analysis", "fatigue_band", "analysis.").value_or(0.0);
   c.analysis.fatigue_unstable_advance =
       r.opt_float(an, "analysis", "fatigue_unstable_advance", "analysis.").value_or(0.0);
