@@ -142,6 +142,18 @@ if "$LDEM" ensemble "$FGM" --runs 2 --no-plot --out "$T/ens" >/dev/null 2>"$T/st
 rc=$?
 [ $rc -eq 2 ] && [ ! -e "$T/ens_bad" ] && grep -q "nope.toml: cannot read the case file" "$T/stderr" && ok || bad "ensemble with a bad case: rc $rc, $(cat "$T/stderr")"
 
+# The lowest eigenfrequencies of the tutorial plate: a table with a positive frequency and the
+# comparison with the step; a count below 1 or not below the free DOF is refused.
+"$LDEM" modes "$GOOD" --count 3 >"$T/stdout" 2>"$T/stderr" &&
+  awk '$1 ~ /^[0-9]+$/ && $2 + 0 > 0 { found = 1 } END { exit !found }' "$T/stdout" &&
+  grep -q "^lowest frequency [0-9.e+]* Hz: its period .* time steps" "$T/stdout" && ok || bad "ldem modes: $(cat "$T/stderr")"
+"$LDEM" modes "$GOOD" --count 0 >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q "^ldem: error: --count: expected a number of modes >= 1, got 0" "$T/stderr" && ok || bad "modes --count 0: rc $rc, $(cat "$T/stderr")"
+"$LDEM" modes "$GOOD" --count 100000 >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q "below the number of free DOF (4880), got 100000" "$T/stderr" && ok || bad "modes --count 100000: rc $rc, $(cat "$T/stderr")"
+
 # Every shipped case is valid.
 while IFS= read -r c; do
   "$LDEM" check "$c" >/dev/null 2>"$T/stderr" && ok || bad "ldem check $c: $(cat "$T/stderr")"

@@ -3,6 +3,7 @@
 #include "analysis/crack.hpp"
 #include "analysis/fatigue.hpp"
 #include "io/output.hpp"
+#include "solver/modes.hpp"
 #include "util/error.hpp"
 
 #include <algorithm>
@@ -378,6 +379,71 @@ int check_command(const std::string& path) {
   fmt::print(stderr, "{}: valid ({} nodes, {} bars, dt = {:.4g} s of a stable {:.4g} s)\n", path,
              c.sim->lattice().num_nodes(), c.sim->lattice().num_bars(), c.sim->dt(),
              c.sim->stable_step().dt);
+  return 0;
+}
+
+int modes_command(const std::string& path, int count, int threads) {
+  if (count < 1)
+    throw InputError(fmt::format("--count: expected a number of modes >= 1, got {}", count));
+  if (threads > 0)
+    omp_set_num_threads(threads);
+  const BuiltCase c = build_case(path);
+  for (const std::string& w : c.warnings)
+    fmt::print(stderr, "ldem: warning: {}\n", w);
+  const Simulation& sim = *c.sim;
+  const Lattice& lat = sim.lattice();
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<Mode> modes = lowest_modes(sim, count);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  fmt::print("{}: {} x {} x {} modules, {} free DOF of {}, {} broken bars left out\n", path,
+             lat.nx(), lat.ny(), lat.nz(), free_dof_count(sim), 3ull * lat.num_nodes(),
+             sim.broken_count());
+  fmt::print("lowest modes of K phi = omega^2 M phi (undamaged bars, reference geometry, lumped "
+             "masses); participation: share of kinetic energy in x, y, z\n\n");
+  fmt::print("{:>5} {:>15} {:>13} {:>15} {:>7} {:>7} {:>7}\n", "mode", "frequency [Hz]",
+             "period [s]", "omega [rad/s]", "x [%]", "y [%]", "z [%]");
+  const Mode* lowest = nullptr; // the lowest mode that stores energy
+  for (std::size_t m = 0; m < modes.size(); ++m) {
+    const Mode& mode = modes[m];
+    const std::string pct = fmt::format("{:7.1f} {:7.1f} {:7.1f}", 100 * mode.participation[0],
+                                        100 * mode.participation[1], 100 * mode.participation[2]);
+    if (mode.zero_energy) {
+      fmt::print("{:5} {:>15} {:>13} {:>15} {}  zero-energy (rigid-body motion or mechanism)\n",
+                 m + 1, "0", "-", "0", pct);
+      continue;
+    }
+    if (!lowest)
+      lowest = &mode;
+    fmt::print("{:5} {:15.6g} {:13.5g} {:15.6g} {}\n", m + 1, mode.frequency_hz,
+               1.0 / mode.frequency_hz, mode.omega, pct);
+  }
+  fmt::print("\n");
+  if (!lowest) {
+    fmt::print("all {} modes found are zero-energy (the body is free to move); ask for more with "
+               "--count\n",
+               modes.size());
+  } else {
+    const double period = 1.0 / lowest->frequency_hz;
+    fmt::print("lowest frequency {:.6g} Hz: its period {:.4g} s is {:.0f} time steps of dt = "
+               "{:.4g} s\n",
+               lowest->frequency_hz, period, period / sim.dt(), sim.dt());
+    // Periodic loading: the lowest eigenfrequency against each sine's frequency.
+    auto sines = [&](const TimeFunction& f, const std::string& what) {
+      for (const TimeTerm& term : f.terms())
+        if (const auto* g = std::get_if<GrowingSine>(&term); g && g->frequency > 0.0)
+          fmt::print("{}: sine at {:.6g} Hz; lowest frequency / load frequency = {:.3g}\n", what,
+                     g->frequency, lowest->frequency_hz / g->frequency);
+    };
+    for (const LoadSpec& l : c.spec.loads)
+      sines(l.scale, fmt::format("load \"{}\"", l.name));
+    for (const VelocitySpec& v : c.spec.velocities)
+      sines(v.scale, fmt::format("velocity on \"{}\"", v.set));
+  }
+  std::fflush(stdout);
+  fmt::print(stderr, "ldem: {} modes of {} free DOF in {:.2f} s\n", modes.size(),
+             free_dof_count(sim), seconds);
   return 0;
 }
 

@@ -1,4 +1,5 @@
-// `ldem check`, `ldem run` and `ldem plot`: from a case file to an output folder.
+// `ldem check`, `ldem run`, `ldem plot` and `ldem modes`: from a case file to an output folder
+// (or, for check and modes, to a report on the terminal).
 #pragma once
 
 #include "io/case_spec.hpp"
@@ -42,6 +43,9 @@ int run_command(const std::string& path, const RunOptions& options);
 // Continues the interrupted run in `out_dir` from its checkpoint.
 int resume_command(const std::string& out_dir, int threads, bool plots);
 int plot_command(const std::string& dir);
+// Prints the `count` lowest eigenfrequencies of the case's lattice (solver/modes.hpp) as a table,
+// with the time step and any periodic load frequency compared to the lowest. No files.
+int modes_command(const std::string& path, int count, int threads);
 
 // The resolved case (every default and derived value), as TOML.
 std::string resolved_case_toml(const BuiltCase& c);

@@ -101,6 +101,16 @@ int main(int argc, char** argv) {
   cmd_ensemble->add_flag("--force", ens.force, "Write into a non-empty output folder");
   cmd_ensemble->add_flag("--no-plot", ens_no_plot, "Do not make the PNG plots");
 
+  int modes_count = 6, modes_threads = 0;
+  auto* cmd_modes = app.add_subcommand(
+      "modes", "Print the lowest eigenfrequencies of a case's lattice (undamaged bars, free DOF, "
+               "pre-cracked bars left out) with their periods and x/y/z participation, and "
+               "compare the lowest with the time step and the load frequency; no files");
+  cmd_modes->add_option("case", case_path, "Case file (TOML)")->required();
+  cmd_modes->add_option("--count", modes_count, "Number of modes")->capture_default_str();
+  cmd_modes->add_option("--threads", modes_threads, "OpenMP threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber);
+
   auto* cmd_format =
       app.add_subcommand("case-format", "Print the case-file reference (docs/case-format.md)");
 
@@ -146,6 +156,8 @@ int main(int argc, char** argv) {
       return ldem::check_command(case_path);
     if (cmd_plot->parsed())
       return ldem::plot_command(plot_dir);
+    if (cmd_modes->parsed())
+      return ldem::modes_command(case_path, modes_count, modes_threads);
     if (cmd_ensemble->parsed()) {
       ens.plots = !ens_no_plot;
       return ldem::ensemble_command(ens);

@@ -90,6 +90,8 @@ public:
   std::uint64_t step_count() const { return step_; }
   double time() const { return static_cast<double>(step_) * dt_; }
   double mass(index_t node) const { return mass_[node]; }
+  // The DOF of a node that are not free: fixed, imposed velocity, or the plane-strain axis.
+  DofMask held(index_t node) const { return held_[node]; }
 
   // Initial velocities (before the first step), e.g. a ramp; taken as v_{-1/2}.
   void set_velocity(const std::function<Vec3(Vec3 X)>& v_of_X);
@@ -200,7 +202,7 @@ private:
   // v_{n-1/2} = (u_n - u_{n-1}) / dt, so no velocity array is streamed.
   std::vector<double> ux_, uy_, uz_, wx_, wy_, wz_;
   std::vector<double> mass_, inv_mass_;
-  std::vector<DofMask> held_;        // DOF fixed or imposed
+  std::vector<DofMask> held_;        // DOF fixed, imposed or held by plane strain
   std::vector<double> px_, py_, pz_; // nodal loads at t_n (only with loads)
   // Bar arrays: the history, the only per-bar state. The bars' force over current length
   // s = F / l lives only in per-thread plane buffers during a step (see advance_rows).

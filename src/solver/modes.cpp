@@ -1,0 +1,230 @@
+// Eigen's dense products would otherwise split over the OpenMP threads; the modes are computed
+// on one thread, so their digits do not depend on the thread count. Another file that uses
+// Eigen in the same program must define it too (tests/test_modes.cpp does), or the program
+// would hold two versions of Eigen's templates and the linker keep either.
+#define EIGEN_DONT_PARALLELIZE
+// GCC 12's AVX-512 headers trip this warning in Eigen's vectorised kernels (a known false alarm,
+// as in simulation.cpp).
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+
+#include "solver/modes.hpp"
+
+#include "util/error.hpp"
+
+#include <Eigen/SparseCore>
+#include <Eigen/SparseLU>
+#include <Spectra/SymEigsShiftSolver.h>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <fmt/format.h>
+#include <numbers>
+
+namespace ldem {
+
+namespace {
+
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+// Nodes [lo, hi) of `nodes` in nested-dissection order: the box is cut across its longest side
+// by a slab of two node planes (a corner plane and the centre plane half a module above it); no
+// bar reaches across the slab (a bar spans at most L along any axis), so the two sides do not
+// couple and their factors fill in only within each side and the slab, which is numbered last.
+// On a 3-D body this fills the factor far less than a general-purpose ordering (16^3 modules:
+// 7 times faster); on a plate, about as well.
+void dissect(const Lattice& lat, std::vector<index_t>& nodes, std::size_t lo, std::size_t hi,
+             std::vector<index_t>& order) {
+  const double L = lat.L();
+  Vec3 mn = lat.position(nodes[lo]), mx = mn;
+  for (std::size_t i = lo; i < hi; ++i) {
+    const Vec3 p = lat.position(nodes[i]);
+    mn = {std::min(mn.x, p.x), std::min(mn.y, p.y), std::min(mn.z, p.z)};
+    mx = {std::max(mx.x, p.x), std::max(mx.y, p.y), std::max(mx.z, p.z)};
+  }
+  int axis = 0;
+  for (int d = 1; d < 3; ++d)
+    if (mx[d] - mn[d] > mx[axis] - mn[axis])
+      axis = d;
+  if (hi - lo < 64 || mx[axis] - mn[axis] < 2.5 * L) {
+    order.insert(order.end(), nodes.begin() + static_cast<std::ptrdiff_t>(lo),
+                 nodes.begin() + static_cast<std::ptrdiff_t>(hi));
+    return;
+  }
+  // The slab [c, c + L) around the middle holds one corner plane and one centre plane.
+  const double c = std::floor(0.5 * (mn[axis] + mx[axis]) / L) * L - 0.25 * L;
+  const auto first = nodes.begin() + static_cast<std::ptrdiff_t>(lo);
+  const auto last = nodes.begin() + static_cast<std::ptrdiff_t>(hi);
+  const auto below_end =
+      std::stable_partition(first, last, [&](index_t n) { return lat.position(n)[axis] < c; });
+  const auto above_end = std::stable_partition(
+      below_end, last, [&](index_t n) { return lat.position(n)[axis] >= c + L; });
+  const auto mid1 = static_cast<std::size_t>(below_end - nodes.begin());
+  const auto mid2 = static_cast<std::size_t>(above_end - nodes.begin());
+  dissect(lat, nodes, lo, mid1, order);
+  dissect(lat, nodes, mid1, mid2, order);
+  order.insert(order.end(), above_end, last);
+}
+
+// Free DOF numbered node by node in nested-dissection order (x, y, z of a node together), held
+// DOF -1; indexed by 3 node + axis.
+std::vector<std::int64_t> number_free_dofs(const Simulation& sim, std::int64_t& count) {
+  const Lattice& lat = sim.lattice();
+  const index_t nn = lat.num_nodes();
+  std::vector<index_t> nodes(nn), order;
+  for (index_t n = 0; n < nn; ++n)
+    nodes[n] = n;
+  order.reserve(nn);
+  dissect(lat, nodes, 0, nn, order);
+  std::vector<std::int64_t> index(3 * static_cast<std::size_t>(nn), -1);
+  count = 0;
+  for (index_t n : order)
+    for (int d = 0; d < 3; ++d)
+      if (!(sim.held(n) & (1u << d)))
+        index[3 * static_cast<std::size_t>(n) + d] = count++;
+  return index;
+}
+
+// A = M^-1/2 K M^-1/2 on the free DOF. Every diagonal entry is stored (zero for a DOF without
+// bars), so that a shift can be added in place.
+SparseMatrix assemble(const Simulation& sim, const std::vector<std::int64_t>& dof,
+                      std::int64_t n_free) {
+  const Lattice& lat = sim.lattice();
+  const BarTable& table = sim.table();
+  std::vector<Eigen::Triplet<double, int>> t;
+  t.reserve(static_cast<std::size_t>(n_free) + 36 * static_cast<std::size_t>(lat.num_bars()));
+  for (std::int64_t i = 0; i < n_free; ++i)
+    t.emplace_back(static_cast<int>(i), static_cast<int>(i), 0.0);
+  for (index_t bar = 0; bar < lat.num_bars(); ++bar) {
+    if (sim.bar_state(bar) == BarState::Broken)
+      continue;
+    const FamilyInfo& fi = lat.family(lat.bar_address(bar).family);
+    const BilinearLaw law = table.law(lat, bar);
+    const double k = law.EA / law.l0; // E A / l0 with the boundary area factor
+    const double e[3] = {fi.d0.x / fi.l0, fi.d0.y / fi.l0, fi.d0.z / fi.l0};
+    const auto [a, b] = lat.bar_nodes(bar);
+    const double rsm_a = 1.0 / std::sqrt(sim.mass(a)), rsm_b = 1.0 / std::sqrt(sim.mass(b));
+    // Blocks k e e^T at (a, a) and (b, b), -k e e^T at (a, b) and (b, a), scaled by M^-1/2.
+    const index_t nodes[2] = {a, b};
+    const double rsm[2] = {rsm_a, rsm_b};
+    for (int p = 0; p < 2; ++p)
+      for (int q = 0; q < 2; ++q) {
+        const double sign = p == q ? 1.0 : -1.0;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) {
+            const std::int64_t row = dof[3 * static_cast<std::size_t>(nodes[p]) + r];
+            const std::int64_t col = dof[3 * static_cast<std::size_t>(nodes[q]) + c];
+            const double v = sign * k * e[r] * e[c] * rsm[p] * rsm[q];
+            if (row >= 0 && col >= 0 && v != 0.0)
+              t.emplace_back(static_cast<int>(row), static_cast<int>(col), v);
+          }
+      }
+  }
+  SparseMatrix A(n_free, n_free);
+  A.setFromTriplets(t.begin(), t.end()); // duplicates summed
+  return A;
+}
+
+// The shift-invert operation y = (A - sigma I)^-1 x for Spectra, by Eigen's supernodal sparse
+// LU in the nested-dissection order of the DOF numbering. A - sigma I is symmetric positive
+// definite for sigma < 0 (K is positive semi-definite), so the diagonal pivots need no
+// exchange (pivot threshold 0) and the determinant is positive.
+class ShiftedLu {
+public:
+  using Scalar = double;
+  explicit ShiftedLu(const SparseMatrix& a) : a_(a) {}
+  Eigen::Index rows() const { return a_.rows(); }
+  Eigen::Index cols() const { return a_.cols(); }
+  void set_shift(double sigma) {
+    SparseMatrix shifted = a_;
+    for (Eigen::Index i = 0; i < shifted.rows(); ++i)
+      shifted.coeffRef(i, i) -= sigma;
+    lu_.isSymmetric(true);
+    lu_.setPivotThreshold(0.0);
+    lu_.compute(shifted);
+    if (lu_.info() != Eigen::Success || !(lu_.signDeterminant() > 0))
+      throw InputError(fmt::format("modes: the shifted stiffness matrix (shift {:.3g} s^-2) is not "
+                                   "positive definite; cannot factorise it",
+                                   sigma));
+  }
+  void perform_op(const double* x, double* y) const {
+    Eigen::Map<const Eigen::VectorXd> xv(x, a_.rows());
+    Eigen::Map<Eigen::VectorXd> yv(y, a_.rows());
+    yv = lu_.solve(xv);
+  }
+
+private:
+  const SparseMatrix& a_;
+  Eigen::SparseLU<SparseMatrix, Eigen::NaturalOrdering<int>> lu_;
+};
+
+// Shift relative to the largest diagonal entry of A (of the order of omega_max^2): small enough
+// to leave the lowest eigenvalues well separated in 1 / (lambda - sigma), large enough that the
+// factorisation of a singular K stays far from round-off (condition number about 1e9).
+constexpr double kShift = -1e-9;
+// Eigenvalues below this (relative to the largest diagonal entry) are zero-energy modes: the
+// factorisation's round-off moves the zero eigenvalues of a free body by 1e-17 to 1e-15 of that
+// entry (measured on free boxes up to 20^3 modules), and a genuine elastic mode this low would
+// need a body some 10^5 modules long.
+constexpr double kZeroEnergy = 1e-12;
+
+} // namespace
+
+std::size_t free_dof_count(const Simulation& sim) {
+  std::int64_t n = 0;
+  number_free_dofs(sim, n);
+  return static_cast<std::size_t>(n);
+}
+
+std::vector<Mode> lowest_modes(const Simulation& sim, int count) {
+  std::int64_t n_free = 0;
+  const std::vector<std::int64_t> dof = number_free_dofs(sim, n_free);
+  if (count < 1 || count >= n_free)
+    throw InputError(fmt::format("modes: the number of modes must be at least 1 and below the "
+                                 "number of free DOF ({}), got {}",
+                                 n_free, count));
+  const SparseMatrix A = assemble(sim, dof, n_free);
+  double diag_max = 0.0;
+  for (Eigen::Index i = 0; i < A.rows(); ++i)
+    diag_max = std::max(diag_max, A.coeff(i, i));
+  if (!(diag_max > 0.0))
+    throw InputError("modes: no free DOF is connected by an unbroken bar");
+
+  ShiftedLu op(A);
+  const Eigen::Index nev = count;
+  const Eigen::Index ncv =
+      std::min<Eigen::Index>(n_free, std::max<Eigen::Index>(2 * nev + 1, nev + 20));
+  Spectra::SymEigsShiftSolver<ShiftedLu> eigs(op, nev, ncv, kShift * diag_max);
+  eigs.init();
+  const Eigen::Index nconv =
+      eigs.compute(Spectra::SortRule::LargestMagn, 1000, 1e-10, Spectra::SortRule::SmallestAlge);
+  if (eigs.info() != Spectra::CompInfo::Successful || nconv < nev)
+    throw InputError(fmt::format("modes: the Lanczos iteration found {} of the {} lowest modes "
+                                 "({} iterations); ask for fewer",
+                                 nconv, nev, eigs.num_iterations()));
+  const Eigen::VectorXd lambda = eigs.eigenvalues();
+  const Eigen::MatrixXd psi = eigs.eigenvectors();
+
+  // Direction of each free DOF, for the participation shares.
+  std::vector<int> axis(static_cast<std::size_t>(n_free));
+  for (std::size_t i = 0; i < dof.size(); ++i)
+    if (dof[i] >= 0)
+      axis[static_cast<std::size_t>(dof[i])] = static_cast<int>(i % 3);
+
+  std::vector<Mode> modes(static_cast<std::size_t>(nev));
+  for (Eigen::Index m = 0; m < nev; ++m) {
+    Mode& mode = modes[static_cast<std::size_t>(m)];
+    mode.zero_energy = lambda[m] <= kZeroEnergy * diag_max;
+    mode.omega = mode.zero_energy ? 0.0 : std::sqrt(lambda[m]);
+    mode.frequency_hz = mode.omega / (2.0 * std::numbers::pi);
+    // phi = M^-1/2 psi, so 0.5 m phi^2 = 0.5 psi^2 DOF by DOF.
+    double share[3] = {0.0, 0.0, 0.0};
+    for (Eigen::Index i = 0; i < n_free; ++i)
+      share[axis[static_cast<std::size_t>(i)]] += psi(i, m) * psi(i, m);
+    const double total = share[0] + share[1] + share[2];
+    for (int d = 0; d < 3; ++d)
+      mode.participation[static_cast<std::size_t>(d)] = share[d] / total;
+  }
+  return modes;
+}
+
+} // namespace ldem
