@@ -430,7 +430,11 @@ def fatigue_pngs(d, case):
     ax.set_xlabel("Delta K [Pa m^0.5]")
     ax.set_ylabel("da/dN [um / cycle]")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
+    if pts:
+        ax.legend(fontsize=7)
+    else:
+        ax.text(0.5, 0.5, fa.get("note", ""), ha="center", va="center", wrap=True, fontsize=8,
+                transform=ax.transAxes)
     ax.set_title("Paris law (Pa, m)" + ("" if pts else ": no growth to fit"), fontsize=10)
     save(fig, os.path.join(d, "fatigue_paris.png"))
 
