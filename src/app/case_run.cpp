@@ -400,15 +400,26 @@ int modes_command(const std::string& path, int count, int threads) {
   fmt::print("{}: {} x {} x {} modules, {} free DOF of {}, {} broken bars left out\n", path,
              lat.nx(), lat.ny(), lat.nz(), free_dof_count(sim), 3ull * lat.num_nodes(),
              sim.broken_count());
+  const bool loaded = !c.spec.loads.empty();
   fmt::print("lowest modes of K phi = omega^2 M phi (undamaged bars, reference geometry, lumped "
-             "masses); participation: share of kinetic energy in x, y, z\n\n");
-  fmt::print("{:>5} {:>15} {:>13} {:>15} {:>7} {:>7} {:>7}\n", "mode", "frequency [Hz]",
-             "period [s]", "omega [rad/s]", "x [%]", "y [%]", "z [%]");
+             "masses); participation: share of kinetic energy in x, y, z{}\n\n",
+             loaded ? "; load: share of the loads' static work F^T K^-1 F" : "");
+  fmt::print("{:>5} {:>15} {:>13} {:>15} {:>7} {:>7} {:>7}{}\n", "mode", "frequency [Hz]",
+             "period [s]", "omega [rad/s]", "x [%]", "y [%]", "z [%]",
+             loaded ? fmt::format(" {:>9}", "load [%]") : "");
   const Mode* lowest = nullptr; // the lowest mode that stores energy
+  double load_sum = 0.0;        // the load shares of the modes listed
+  const Mode* load_first = nullptr; // the lowest mode with at least 1 % of the static work
   for (std::size_t m = 0; m < modes.size(); ++m) {
     const Mode& mode = modes[m];
-    const std::string pct = fmt::format("{:7.1f} {:7.1f} {:7.1f}", 100 * mode.participation[0],
-                                        100 * mode.participation[1], 100 * mode.participation[2]);
+    std::string pct = fmt::format("{:7.1f} {:7.1f} {:7.1f}", 100 * mode.participation[0],
+                                  100 * mode.participation[1], 100 * mode.participation[2]);
+    if (loaded)
+      pct += std::isnan(mode.load_share) ? fmt::format(" {:>9}", "-")
+                                         : fmt::format(" {:9.3g}", 100 * mode.load_share);
+    load_sum += mode.load_share;
+    if (!load_first && mode.load_share >= 0.01)
+      load_first = &mode;
     if (mode.zero_energy) {
       fmt::print("{:5} {:>15} {:>13} {:>15} {}  zero-energy (rigid-body motion or mechanism)\n",
                  m + 1, "0", "-", "0", pct);
@@ -418,6 +429,21 @@ int modes_command(const std::string& path, int count, int threads) {
       lowest = &mode;
     fmt::print("{:5} {:15.6g} {:13.5g} {:15.6g} {}\n", m + 1, mode.frequency_hz,
                1.0 / mode.frequency_hz, mode.omega, pct);
+  }
+  if (loaded) {
+    fmt::print("\n");
+    if (std::isnan(load_sum))
+      fmt::print("the loads' static response: not available (no load on a free DOF, a free body "
+                 "loaded out of equilibrium, or only zero-energy modes listed)\n");
+    else if (load_first)
+      fmt::print("the loads' static response: {:.4g} % in the {} modes listed; the lowest mode "
+                 "with at least 1 % of it: mode {} at {:.6g} Hz\n",
+                 100 * load_sum, modes.size(), load_first - modes.data() + 1,
+                 load_first->frequency_hz);
+    else
+      fmt::print("the loads' static response: {:.4g} % in the {} modes listed; none of them has "
+                 "1 % of it (ask for more with --count)\n",
+                 100 * load_sum, modes.size());
   }
   fmt::print("\n");
   if (!lowest) {

@@ -92,6 +92,8 @@ public:
   double mass(index_t node) const { return mass_[node]; }
   // The DOF of a node that are not free: fixed, imposed velocity, or the plane-strain axis.
   DofMask held(index_t node) const { return held_[node]; }
+  // The boundary conditions and loads the simulation was built with.
+  const Conditions& conditions() const { return cond_; }
 
   // Initial velocities (before the first step), e.g. a ramp; taken as v_{-1/2}.
   void set_velocity(const std::function<Vec3(Vec3 X)>& v_of_X);
