@@ -354,6 +354,8 @@ def fatigue_pngs(d, case):
         for r in front:
             xs += [xs[-1], float(r["a"])]
             ts += [float(r["t"]) / tmax, float(r["t"]) / tmax]
+        xs.append(xs[-1])
+        ts.append(1.0)  # the front holds until the run's end
         ax.plot(xs, ts, "-", color="tab:green", lw=1.5, label="damage front a(t)")
     mark(ax, vertical=False)
     ax.set_xlabel("x of the bar's centre [m]")
@@ -366,8 +368,9 @@ def fatigue_pngs(d, case):
 
     # Crack configurations at six moments (figure 7 left).
     t0 = fa.get("subcritical_start_t_over_tmax") or t_const / tmax
-    t1 = fa.get("unstable_t_over_tmax") or 1.0
-    moments = [t0 + (t1 - t0) * k / 4 for k in range(5)] + [1.0]
+    t1 = fa.get("unstable_t_over_tmax")
+    moments = ([t0 + (t1 - t0) * k / 4 for k in range(5)] + [1.0] if t1 is not None
+               else [t0 + (1.0 - t0) * k / 5 for k in range(6)])
     fig, axes = plt.subplots(3, 2, figsize=(10, 10 * ext[b_ax] / ext[a_ax] * 3 / 2 + 1))
     for ax, tm in zip(axes.flat, moments):
         s_pts, b_pts = {}, {}
@@ -400,6 +403,8 @@ def fatigue_pngs(d, case):
         Ns += [float(r["N"])] * 2
         As += [As[-1] if As else fa["precrack_length_m"], float(r["a"])]
     if Ns:
+        Ns.append((tmax - t_const) * f_load)  # the front holds until the run's end
+        As.append(As[-1])
         ax.plot(Ns, As, "-", color="tab:green", lw=1, label="damage front")
     if rows:
         ax.plot([float(r["N"]) for r in rows], [float(r["a"]) for r in rows], "o",
