@@ -133,6 +133,20 @@ if "$LDEM" run "$FGM" --out "$T/fgm" >/dev/null 2>"$T/stderr" &&
 rc=$?
 [ $rc -eq 2 ] && grep -q "case.resolved.toml: cannot read the resolved case" "$T/stderr" && ok || bad "analyze on a non-output folder: rc $rc, $(cat "$T/stderr")"
 
+# The fatigue analysis: the coarse fatigue plate, cut short after a few cycles, leaves
+# fatigue.csv, the front and the fatigue pictures, and analysis.fatigue with the Paris keys;
+# `ldem analyze fatigue` on a run without a cyclic load is an error that says what is missing.
+sed 's/^end = 8.1667 .*/end = 0.13/; s/^vtu_every = .*/vtu = false/' "$SRC/cases/subcritical_fatigue_coarse.toml" >"$T/fatigue.toml"
+if "$LDEM" run "$T/fatigue.toml" --out "$T/fatigue" >/dev/null 2>"$T/stderr" &&
+  [ "$(head -1 "$T/fatigue/fatigue.csv")" = "N,a,da_dN,delta_K" ] &&
+  [ "$(head -1 "$T/fatigue/fatigue_front.csv")" = "t,N,a" ] && [ -s "$T/fatigue/fatigue_front.png" ] &&
+  [ -s "$T/fatigue/fatigue_load.png" ] && [ -s "$T/fatigue/fatigue_paris.png" ] &&
+  grep -q '"paris_m"' "$T/fatigue/summary.json" && grep -q '"unstable_t_over_tmax"' "$T/fatigue/summary.json" &&
+  "$LDEM" analyze fatigue "$T/fatigue" --window cycles | grep -q "no unstable failure"; then ok; else bad "fatigue analysis: $(cat "$T/stderr")"; fi
+"$LDEM" analyze fatigue "$T/fgm" >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q "the fatigue analysis needs a cyclic \[\[load\]\]" "$T/stderr" && ok || bad "fatigue analysis without loads: rc $rc, $(cat "$T/stderr")"
+
 # An ensemble: its table with median and range, one folder per run; a bad case file stops it
 # before anything is written.
 if "$LDEM" ensemble "$FGM" --runs 2 --no-plot --out "$T/ens" >/dev/null 2>"$T/stderr" &&

@@ -409,12 +409,7 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
     return fallback;
   };
   const std::string summary_file = dir + "/summary.json";
-  nlohmann::ordered_json summary;
-  try {
-    summary = nlohmann::ordered_json::parse(read_text(summary_file, "the run's summary"));
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(fmt::format("{}: not readable as JSON: {}", summary_file, e.what()));
-  }
+  const nlohmann::ordered_json summary = read_summary(dir);
   const double t_end = summary.value("end_time", 0.0);
   if (!(t_end > 0.0))
     throw InputError(fmt::format("{}: end_time: expected a positive time, got {}", summary_file,

@@ -141,15 +141,19 @@ std::vector<CrackPoint> read_bar_events(const std::string& dir, const RunGeometr
   return events;
 }
 
-void update_summary(const std::string& dir, const std::string& key,
-                    const nlohmann::ordered_json& value) {
+nlohmann::ordered_json read_summary(const std::string& dir) {
   const std::string summary_file = dir + "/summary.json";
-  nlohmann::ordered_json summary;
   try {
-    summary = nlohmann::ordered_json::parse(read_text(summary_file, "the run's summary"));
+    return nlohmann::ordered_json::parse(read_text(summary_file, "the run's summary"));
   } catch (const nlohmann::json::exception& e) {
     throw InputError(fmt::format("{}: not readable as JSON: {}", summary_file, e.what()));
   }
+}
+
+void update_summary(const std::string& dir, const std::string& key,
+                    const nlohmann::ordered_json& value) {
+  const std::string summary_file = dir + "/summary.json";
+  nlohmann::ordered_json summary = read_summary(dir);
   if (!summary.contains("analysis") || !summary["analysis"].is_object())
     summary["analysis"] = nlohmann::ordered_json::object();
   summary["analysis"][key] = value;

@@ -34,6 +34,9 @@ std::vector<CrackPoint> read_bar_events(const std::string& dir, const RunGeometr
 double resolved_number(const toml::node_view<const toml::node>& v, const std::string& file,
                        const std::string& key);
 
+// DIR/summary.json; throws InputError naming it if it is missing or not JSON.
+nlohmann::ordered_json read_summary(const std::string& dir);
+
 // Replaces `analysis.<key>` in DIR/summary.json, keeping everything else.
 void update_summary(const std::string& dir, const std::string& key,
                     const nlohmann::ordered_json& value);
