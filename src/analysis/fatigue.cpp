@@ -351,7 +351,9 @@ CyclicLoad read_cyclic_load(const RunGeometry& rg, const std::string& wanted, do
   cl.t_constant = gs.t_start + gs.n_cycles / gs.frequency;
   // 64 samples per period resolve a cycle's extremes to 0.12 % of its amplitude.
   const double h = 1.0 / (64.0 * cl.frequency);
-  const auto samples = static_cast<std::size_t>(std::ceil(t_end / h)) + 1;
+  // To the run's end, and at least two periods into the constant amplitude (its range).
+  const double t_last = std::max(t_end, cl.t_constant) + 2.0 / cl.frequency;
+  const auto samples = static_cast<std::size_t>(std::ceil(t_last / h)) + 1;
   cl.t.reserve(samples);
   cl.sigma.reserve(samples);
   for (std::size_t i = 0; i < samples; ++i) {
@@ -487,7 +489,7 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   j["tmax_s"] = t_end;
   j["load_frequency_hz"] = load.frequency;
   j["constant_amplitude_from_s"] = load.t_constant;
-  j["stress_range_constant_pa"] = load.range_at(load.t_constant + 1.0 / load.frequency);
+  j["stress_range_constant_pa"] = load.range_at(load.t_constant + 0.5 / load.frequency);
   j["precrack_length_m"] = fo.tip;
   j["front_at_constant_amplitude_m"] = r.a_at_constant;
   j["final_front_m"] = r.front.empty() ? fo.tip : r.front.back().a;
