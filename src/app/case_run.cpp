@@ -743,6 +743,7 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
   const std::uint64_t first = st.next;
   std::uint64_t n = st.next;
   std::string blow_up, stopped_by;
+  std::unique_ptr<LatticeVtuWriter> vtu_writer; // made at the first snapshot
   for (; n <= steps; ++n) {
     // An interruption stops between steps: the checkpoint holds the state before step n and
     // the outputs hold every row of the steps before it, so a resumed run writes exactly
@@ -785,7 +786,9 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
     const bool report = n % every == 0 || n == steps;
     if (s.output.vtu && (n % vtu_every == 0 || n == steps)) {
       const std::string name = fmt::format("lattice_{:06d}.vtu", st.snapshots.size());
-      write_lattice_vtu(sim, dir + name);
+      if (!vtu_writer)
+        vtu_writer = std::make_unique<LatticeVtuWriter>(sim);
+      vtu_writer->write(sim, dir + name);
       st.snapshots.emplace_back(sim.time(), name);
       write_file(dir + "lattice.pvd", lattice_pvd(st.snapshots));
     }

@@ -38,8 +38,12 @@ OutputFile::~OutputFile() {
 }
 
 void OutputFile::write(const std::string& text) {
-  size_ += text.size();
-  if (std::fwrite(text.data(), 1, text.size(), f_) != text.size())
+  write(text.data(), text.size());
+}
+
+void OutputFile::write(const char* data, std::size_t bytes) {
+  size_ += bytes;
+  if (std::fwrite(data, 1, bytes, f_) != bytes)
     throw InputError(fmt::format("{}: write failed ({})", part_, std::strerror(errno)));
 }
 
@@ -63,29 +67,6 @@ void write_file(const std::string& path, const std::string& text) {
 
 namespace {
 
-// VTK XML arrays stored raw in the file's AppendedData section: each array is a UInt64 byte
-// count followed by its bytes; the XML header gives each array's offset into that section.
-class AppendedArrays {
-public:
-  template <class T>
-  std::string add(const char* type, const char* name, int components, const std::vector<T>& v) {
-    const std::string tag =
-        fmt::format("<DataArray type=\"{}\" Name=\"{}\" NumberOfComponents=\"{}\" "
-                    "format=\"appended\" offset=\"{}\"/>\n",
-                    type, name, components, data_.size());
-    const std::uint64_t n = v.size() * sizeof(T);
-    const auto* p = reinterpret_cast<const char*>(&n);
-    data_.insert(data_.end(), p, p + sizeof n);
-    const auto* q = reinterpret_cast<const char*>(v.data());
-    data_.insert(data_.end(), q, q + n);
-    return tag;
-  }
-  const std::vector<char>& data() const { return data_; }
-
-private:
-  std::vector<char> data_;
-};
-
 // Output precision: positions, displacements, velocities and bar values in single precision
 // (7 digits, ample for pictures; the CSV files keep full precision).
 std::vector<float> to_float(const std::vector<double>& v) {
@@ -94,23 +75,22 @@ std::vector<float> to_float(const std::vector<double>& v) {
 
 } // namespace
 
-void write_lattice_vtu(const Simulation& sim, const std::string& path) {
+LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
   const Lattice& lat = sim.lattice();
   const index_t nn = lat.num_nodes(), nb = lat.num_bars();
-  std::vector<float> points(3 * std::size_t{nn}), disp(3 * std::size_t{nn}),
-      vel(3 * std::size_t{nn});
+  nn_ = nn;
+  nb_ = nb;
+  // What does not change during a run: reference positions, connectivity, cell types and the
+  // material fields, appended after the per-snapshot arrays in one block.
+  std::vector<float> points(3 * std::size_t{nn});
   for (index_t n = 0; n < nn; ++n) {
-    const Vec3 x = lat.position(n), u = sim.displacement(n), v = sim.half_step_velocity(n);
-    const double p[3] = {x.x, x.y, x.z}, d[3] = {u.x, u.y, u.z}, w[3] = {v.x, v.y, v.z};
-    for (int c = 0; c < 3; ++c) {
-      points[3 * std::size_t{n} + c] = static_cast<float>(p[c]);
-      disp[3 * std::size_t{n} + c] = static_cast<float>(d[c]);
-      vel[3 * std::size_t{n} + c] = static_cast<float>(w[c]);
-    }
+    const Vec3 x = lat.position(n);
+    points[3 * std::size_t{n}] = static_cast<float>(x.x);
+    points[3 * std::size_t{n} + 1] = static_cast<float>(x.y);
+    points[3 * std::size_t{n} + 2] = static_cast<float>(x.z);
   }
   std::vector<std::int32_t> conn(2 * std::size_t{nb}), offsets(nb);
-  std::vector<std::uint8_t> types(nb, 3), state; // 3 = VTK_LINE
-  std::vector<double> damage, force;
+  const std::vector<std::uint8_t> types(nb, 3); // 3 = VTK_LINE
   for (int f = 0; f < kFamilies; ++f) {
     const FamilyInfo& fi = lat.family(f);
     for (index_t k = 0; k < fi.nk; ++k)
@@ -123,20 +103,36 @@ void write_lattice_vtu(const Simulation& sim, const std::string& path) {
   }
   for (index_t b = 0; b < nb; ++b)
     offsets[b] = static_cast<std::int32_t>(2 * (std::int64_t{b} + 1));
-  sim.bar_snapshot(state, damage, force);
 
-  AppendedArrays a;
+  // The per-snapshot arrays come first in the appended data; their sizes are fixed, so every
+  // offset, and the whole XML header, is known now.
+  std::uint64_t offset = 0;
+  auto tag = [&](const char* type, const char* name, int components, std::uint64_t bytes) {
+    const std::string t =
+        fmt::format("<DataArray type=\"{}\" Name=\"{}\" NumberOfComponents=\"{}\" "
+                    "format=\"appended\" offset=\"{}\"/>\n",
+                    type, name, components, offset);
+    offset += sizeof(std::uint64_t) + bytes;
+    return t;
+  };
+  auto add_static = [&](const void* data, std::uint64_t bytes) {
+    const auto* p = reinterpret_cast<const char*>(&bytes);
+    static_block_.insert(static_block_.end(), p, p + sizeof bytes);
+    const auto* q = static_cast<const char*>(data);
+    static_block_.insert(static_block_.end(), q, q + bytes);
+  };
+  const std::uint64_t fn = 4ull * nn, fb = 4ull * nb;
   std::string s = "<?xml version=\"1.0\"?>\n"
                   "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
                   "header_type=\"UInt64\">\n<UnstructuredGrid>\n";
   s += fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", nn, nb);
   s += "<PointData Vectors=\"displacement\">\n";
-  s += a.add("Float32", "displacement", 3, disp);
-  s += a.add("Float32", "velocity", 3, vel);
+  s += tag("Float32", "displacement", 3, 3 * fn);
+  s += tag("Float32", "velocity", 3, 3 * fn);
   s += "</PointData>\n<CellData Scalars=\"damage\">\n";
-  s += a.add("Float32", "damage", 1, to_float(damage));
-  s += a.add("UInt8", "state", 1, state);
-  s += a.add("Float32", "axial_force", 1, to_float(force));
+  s += tag("Float32", "damage", 1, fb);
+  s += tag("UInt8", "state", 1, nb);
+  s += tag("Float32", "axial_force", 1, fb);
   if (sim.table().per_bar()) {
     // The material fields per bar: E, Gf (its fracture energy per fracture area, eq. 11),
     // e_p and e_r.
@@ -146,23 +142,74 @@ void write_lattice_vtu(const Simulation& sim, const std::string& path) {
       E[b] = static_cast<float>(p.E);
       Gf[b] = static_cast<float>(p.Gf);
     }
-    s += a.add("Float32", "E", 1, E);
-    s += a.add("Float32", "Gf", 1, Gf);
-    s += a.add("Float32", "e_p", 1, to_float(sim.table().e_p_bar()));
-    s += a.add("Float32", "e_r", 1, to_float(sim.table().e_r_bar()));
+    const std::vector<float> e_p = to_float(sim.table().e_p_bar()),
+                             e_r = to_float(sim.table().e_r_bar());
+    s += tag("Float32", "E", 1, fb);
+    add_static(E.data(), fb);
+    s += tag("Float32", "Gf", 1, fb);
+    add_static(Gf.data(), fb);
+    s += tag("Float32", "e_p", 1, fb);
+    add_static(e_p.data(), fb);
+    s += tag("Float32", "e_r", 1, fb);
+    add_static(e_r.data(), fb);
   }
   s += "</CellData>\n<Points>\n";
-  s += a.add("Float32", "Points", 3, points);
+  s += tag("Float32", "Points", 3, 3 * fn);
+  add_static(points.data(), 3 * fn);
   s += "</Points>\n<Cells>\n";
-  s += a.add("Int32", "connectivity", 1, conn);
-  s += a.add("Int32", "offsets", 1, offsets);
-  s += a.add("UInt8", "types", 1, types);
+  s += tag("Int32", "connectivity", 1, 2 * fb);
+  add_static(conn.data(), 2 * fb);
+  s += tag("Int32", "offsets", 1, fb);
+  add_static(offsets.data(), fb);
+  s += tag("UInt8", "types", 1, nb);
+  add_static(types.data(), nb);
   s += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
+  header_ = std::move(s);
+  disp_.resize(3 * std::size_t{nn});
+  vel_.resize(3 * std::size_t{nn});
+  damage_f_.resize(nb);
+  force_f_.resize(nb);
+}
+
+void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
+  const auto nn = static_cast<std::ptrdiff_t>(nn_);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t n = 0; n < nn; ++n) {
+    const auto i = static_cast<index_t>(n);
+    const Vec3 u = sim.displacement(i), v = sim.half_step_velocity(i);
+    const std::size_t o = 3 * static_cast<std::size_t>(n);
+    disp_[o] = static_cast<float>(u.x);
+    disp_[o + 1] = static_cast<float>(u.y);
+    disp_[o + 2] = static_cast<float>(u.z);
+    vel_[o] = static_cast<float>(v.x);
+    vel_[o + 1] = static_cast<float>(v.y);
+    vel_[o + 2] = static_cast<float>(v.z);
+  }
+  sim.bar_snapshot(state_, damage_, force_);
+  const auto nb = static_cast<std::ptrdiff_t>(nb_);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t b = 0; b < nb; ++b) {
+    damage_f_[static_cast<std::size_t>(b)] = static_cast<float>(damage_[static_cast<std::size_t>(b)]);
+    force_f_[static_cast<std::size_t>(b)] = static_cast<float>(force_[static_cast<std::size_t>(b)]);
+  }
   OutputFile out(path);
-  out.write(s);
-  out.write(std::string(a.data().begin(), a.data().end()));
+  out.write(header_);
+  auto block = [&](const void* data, std::uint64_t bytes) {
+    out.write(reinterpret_cast<const char*>(&bytes), sizeof bytes);
+    out.write(static_cast<const char*>(data), bytes);
+  };
+  block(disp_.data(), disp_.size() * sizeof(float));
+  block(vel_.data(), vel_.size() * sizeof(float));
+  block(damage_f_.data(), damage_f_.size() * sizeof(float));
+  block(state_.data(), state_.size());
+  block(force_f_.data(), force_f_.size() * sizeof(float));
+  out.write(static_block_.data(), static_block_.size());
   out.write("\n</AppendedData>\n</VTKFile>\n");
   out.commit();
+}
+
+void write_lattice_vtu(const Simulation& sim, const std::string& path) {
+  LatticeVtuWriter(sim).write(sim, path);
 }
 
 std::string lattice_pvd(const std::vector<std::pair<double, std::string>>& snapshots) {

@@ -24,6 +24,7 @@ public:
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
   void write(const std::string& text);
+  void write(const char* data, std::size_t bytes);
   void flush();
   void commit();
   const std::string& path() const { return path_; }
@@ -42,6 +43,23 @@ void write_file(const std::string& path, const std::string& text);
 // 2 broken), damage (dissipated energy over Gf A^f, 0 to 1), axial force and, where fields
 // vary, E, Gf, e_p, e_r. Raw binary appended data, values in single precision.
 void write_lattice_vtu(const Simulation& sim, const std::string& path);
+
+// The same for a series of snapshots of one run: what does not change (reference positions,
+// connectivity, material fields, the XML header with every offset) is prepared once, so a
+// snapshot only converts and writes the displacements, velocities and bar values.
+class LatticeVtuWriter {
+public:
+  explicit LatticeVtuWriter(const Simulation& sim);
+  void write(const Simulation& sim, const std::string& path);
+
+private:
+  index_t nn_ = 0, nb_ = 0;
+  std::string header_;
+  std::vector<char> static_block_;
+  std::vector<float> disp_, vel_, damage_f_, force_f_;
+  std::vector<std::uint8_t> state_;
+  std::vector<double> damage_, force_;
+};
 // The ParaView collection that lists the snapshots.
 std::string lattice_pvd(const std::vector<std::pair<double, std::string>>& snapshots);
 
