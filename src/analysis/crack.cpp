@@ -539,12 +539,8 @@ CrackAnalysis analyze_crack_dir(const std::string& dir) {
   const double L = rg.L;
   const CrackGeometry& g = rg.crack;
   const int along = rg.along, normal = rg.normal;
-  const auto* an = c["analysis"].as_table();
   auto opt_len = [&](const char* key, double fallback) {
-    if (an)
-      if (const auto v = (*an)[key].value<double>())
-        return *v;
-    return fallback;
+    return analysis_number(rg, key, fallback);
   };
   const double E_lo = c["material"]["E_range"][0].value_or(0.0);
   const double E_hi = c["material"]["E_range"][1].value_or(0.0);

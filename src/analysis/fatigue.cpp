@@ -364,11 +364,12 @@ CyclicLoad read_cyclic_load(const RunGeometry& rg, const std::string& wanted, do
   return cl;
 }
 
-std::vector<BarEvent> to_bar_events(const std::vector<CrackPoint>& p, double mouth) {
+// Events with x measured from `border` along the crack.
+std::vector<BarEvent> to_bar_events(const std::vector<CrackPoint>& p, double border) {
   std::vector<BarEvent> e;
   e.reserve(p.size());
   for (const CrackPoint& q : p)
-    e.push_back({q.t, q.a - mouth, q.n});
+    e.push_back({q.t, q.a - border, q.n});
   return e;
 }
 
@@ -404,26 +405,17 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   const RunGeometry rg = read_run_geometry(dir, "fatigue analysis");
   const toml::table& c = rg.resolved;
   const auto* an = c["analysis"].as_table();
-  auto opt = [&](const char* key, double fallback) {
-    if (an)
-      if (const auto v = (*an)[key].value<double>())
-        return *v;
-    return fallback;
-  };
-  const std::string summary_file = dir + "/summary.json";
-  const nlohmann::ordered_json summary = read_summary(dir);
-  const double t_end = summary.value("end_time", 0.0);
+  auto opt = [&](const char* key, double fallback) { return analysis_number(rg, key, fallback); };
+  const double t_end = read_summary(dir).value("end_time", 0.0);
   if (!(t_end > 0.0))
-    throw InputError(fmt::format("{}: end_time: expected a positive time, got {}", summary_file,
-                                 summary.value("end_time", 0.0)));
+    throw InputError(fmt::format("{}/summary.json: end_time: expected a positive time, got {:g}",
+                                 dir, t_end));
 
+  // x runs from the border the pre-crack starts at (the paper's a): the low one along its axis.
   const CrackGeometry& g = rg.crack;
-  const double mouth = g.mouth_a;
-  // x runs from the border the pre-crack starts at (the paper's a), whichever side that is.
-  const bool from_low = std::abs(mouth - g.a_lo) <= std::abs(g.a_hi - mouth);
-  if (!from_low)
+  if (std::abs(g.mouth_a - g.a_lo) > std::abs(g.a_hi - g.mouth_a))
     throw InputError(fmt::format("{}: the fatigue analysis measures an edge crack from the low "
-                                 "border along {} ; this pre-crack starts at the high one",
+                                 "border along {}; this pre-crack starts at the high one",
                                  rg.case_file, "xyz"[rg.along]));
   const double width = g.a_hi - g.a_lo;
   FrontOptions fo;
@@ -450,7 +442,6 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
 
   const auto softening = to_bar_events(read_bar_events(dir, rg, "softening"), g.a_lo);
   const auto broken = to_bar_events(read_bar_events(dir, rg, "broken"), g.a_lo);
-  (void)mouth;
   FatigueAnalysis r = analyze_fatigue(softening, broken, fo, load, o, t_end);
 
   std::string rows = "N,a,da_dN,delta_K\n";

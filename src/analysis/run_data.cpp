@@ -141,6 +141,13 @@ std::vector<CrackPoint> read_bar_events(const std::string& dir, const RunGeometr
   return events;
 }
 
+double analysis_number(const RunGeometry& g, const char* key, double fallback) {
+  if (const auto* an = g.resolved["analysis"].as_table())
+    if (const auto v = (*an)[key].value<double>())
+      return *v;
+  return fallback;
+}
+
 nlohmann::ordered_json read_summary(const std::string& dir) {
   const std::string summary_file = dir + "/summary.json";
   try {

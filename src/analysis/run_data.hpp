@@ -30,6 +30,9 @@ RunGeometry read_run_geometry(const std::string& dir, const std::string& what);
 std::vector<CrackPoint> read_bar_events(const std::string& dir, const RunGeometry& g,
                                         const std::string& kind);
 
+// A number of the case's [analysis] table, or `fallback` where the case leaves it out.
+double analysis_number(const RunGeometry& g, const char* key, double fallback);
+
 // A number of the resolved case; throws InputError naming the file and key if missing.
 double resolved_number(const toml::node_view<const toml::node>& v, const std::string& file,
                        const std::string& key);
