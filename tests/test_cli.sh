@@ -82,7 +82,16 @@ done
 # A hard kill (no chance to clean up) after periodic checkpoints: resume from the last one.
 cp "$T/case.toml" "$T/ckpt.toml"
 "$LDEM" run "$T/ckpt.toml" --out "$T/ref2" --no-plot >/dev/null 2>&1
-( timeout -s KILL 0.6 "$LDEM" run "$T/ckpt.toml" --out "$T/kill" --no-plot --checkpoint-every 200 >/dev/null 2>&1 ) 2>/dev/null
+# Killed as soon as its first checkpoint exists (a fixed delay was either too short or too
+# long depending on the machine's load).
+"$LDEM" run "$T/ckpt.toml" --out "$T/kill" --no-plot --checkpoint-every 200 >/dev/null 2>&1 &
+pid=$!
+for _ in $(seq 2000); do
+  [ -s "$T/kill/checkpoint/state.ckpt" ] && break
+  sleep 0.01
+done
+kill -9 $pid 2>/dev/null
+wait $pid 2>/dev/null
 : >"$T/stderr"
 if [ -s "$T/kill/checkpoint/state.ckpt" ] && "$LDEM" resume "$T/kill" --no-plot >/dev/null 2>"$T/stderr" &&
   cmp -s "$T/ref2/energy.csv" "$T/kill/energy.csv" && cmp -s "$T/ref2/events.csv" "$T/kill/events.csv" &&
