@@ -165,10 +165,14 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
   add_static(types.data(), nb);
   s += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
   header_ = std::move(s);
+  // Every buffer a snapshot fills, sized (and its pages touched) now, not at the first snapshot.
   disp_.resize(3 * std::size_t{nn});
   vel_.resize(3 * std::size_t{nn});
   damage_f_.resize(nb);
   force_f_.resize(nb);
+  state_.resize(nb);
+  damage_.resize(nb);
+  force_.resize(nb);
 }
 
 void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {

@@ -58,8 +58,9 @@ Lattice::Lattice(index_t nx, index_t ny, index_t nz, double L) : nx_(nx), ny_(ny
     if (ni == 0 || nj == 0 || nk == 0)
       fi.ni = fi.nj = fi.nk = 0;
     offset += fi.count();
-    fi.plane_offset = bars_per_plane_;
-    bars_per_plane_ += fi.ni * fi.nj;
+    fi.plane_stride = fi.ni + 1;
+    fi.plane_offset = plane_buffer_size_ + 1;
+    plane_buffer_size_ += fi.plane_stride * fi.nj + 1;
   };
   set(Family::EdgeX, nx, ny + 1, nz + 1, corner_at, {1, csy, csz}, {L, 0, 0}, BarKind::Normal);
   set(Family::EdgeY, nx + 1, ny, nz + 1, corner_at, {csy, csy, csz}, {0, L, 0}, BarKind::Normal);
@@ -171,7 +172,7 @@ int row_links(const Lattice& lat, const NodeRow& row, RowLink out[kMaxRowLinks])
     const FamilyInfo& fi = lat.family(f);
     out[n++] = {std::int64_t{lat.bar(f, 0, jb, kb)} + shift_i,
                 other_first,
-                std::int64_t{fi.plane_offset} + std::int64_t{fi.ni} * jb + shift_i,
+                std::int64_t{fi.plane_offset} + std::int64_t{fi.plane_stride} * jb + shift_i,
                 ilo,
                 ihi,
                 first_role ? fi.d0 : neg(fi.d0),

@@ -56,7 +56,11 @@ struct NodeMap {
 struct FamilyInfo {
   index_t ni = 0, nj = 0, nk = 0; // block of bar indices
   index_t offset = 0;             // global number of the family's first bar
-  index_t plane_offset = 0;       // position of the family's bars within one k-plane
+  // Position of the family's bar (i, j) of a k-plane in a plane buffer: plane_offset +
+  // plane_stride * j + i. Rows are stride ni + 1 apart and the block starts one slot in, so
+  // index -1 and ni of every row are zero pads (the buffer's users keep them zero).
+  index_t plane_offset = 0;
+  index_t plane_stride = 0;
   NodeMap a, b;                   // first and second node of bar (i,j,k)
   Vec3 d0;                        // reference vector X_b - X_a
   double l0 = 0.0;                // reference length
@@ -91,9 +95,9 @@ public:
   index_t num_centres() const { return num_centres_; }
   index_t num_nodes() const { return num_corners_ + num_centres_; }
   index_t num_bars() const { return num_bars_; }
-  // Bars with block index k, over all families, laid out family after family
-  // (FamilyInfo::plane_offset), i fastest: the size of one plane's worth of bar data.
-  index_t bars_per_plane() const { return bars_per_plane_; }
+  // Size of a buffer holding one value per bar of a k-plane, family after family, i fastest,
+  // with a zero pad around every row (FamilyInfo::plane_offset, plane_stride).
+  index_t plane_buffer_size() const { return plane_buffer_size_; }
 
   index_t corner(index_t i, index_t j, index_t k) const {
     return i + (nx_ + 1) * (j + (ny_ + 1) * k);
@@ -126,7 +130,7 @@ public:
 private:
   index_t nx_, ny_, nz_;
   double L_;
-  index_t num_corners_ = 0, num_centres_ = 0, num_bars_ = 0, bars_per_plane_ = 0;
+  index_t num_corners_ = 0, num_centres_ = 0, num_bars_ = 0, plane_buffer_size_ = 0;
   std::array<FamilyInfo, kFamilies> families_{};
 };
 

@@ -176,6 +176,25 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   for (std::size_t r = 0; r < node_rows_.size(); ++r)
     row_link_count_[r] =
         static_cast<std::uint8_t>(row_links(lat_, node_rows_[r], &row_links_[kMaxRowLinks * r]));
+  // The range of i each row gathers in one fused pass. A link missing at a row's end reads a
+  // zero pad of the plane buffer (s = 0) and a neighbouring node's finite displacement, so the
+  // fused pass covers the whole row wherever those reads stay inside the node arrays (all
+  // rows but the first and last corner and centre rows); elsewhere only the range where every
+  // link is present, the ends then link by link.
+  row_fused_.resize(node_rows_.size());
+  for (std::size_t r = 0; r < node_rows_.size(); ++r) {
+    const RowLink* links = &row_links_[kMaxRowLinks * r];
+    const index_t n = node_rows_[r].length;
+    bool whole = true;
+    index_t ilo = 0, ihi = n;
+    for (int l = 0; l < row_link_count_[r]; ++l) {
+      ilo = std::max(ilo, links[l].ilo);
+      ihi = std::min(ihi, links[l].ihi);
+      whole = whole && links[l].other_base >= 0 &&
+              links[l].other_base + n <= std::int64_t{lat_.num_nodes()};
+    }
+    row_fused_[r] = whole ? std::pair{index_t{0}, n} : std::pair{ilo, std::max(ilo, ihi)};
+  }
   row_held_.assign(node_rows_.size(), 0);
   for (std::size_t r = 0; r < node_rows_.size(); ++r)
     for (index_t i = 0; i < node_rows_[r].length; ++i)
@@ -217,10 +236,11 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   threads_ = omp_get_max_threads();
   plane_buffers_.resize(3 * static_cast<std::size_t>(threads_));
   for (auto& b : plane_buffers_)
-    b.assign(lat_.bars_per_plane(), 0.0);
+    b.assign(lat_.plane_buffer_size(), 0.0);
   thread_scratch_.resize(static_cast<std::size_t>(threads_));
   for (auto& sc : thread_scratch_)
     sc.resize(4 * (lat_.nx() + 1ull)); // fx, fy, fz and a fourth row for the ledger sums
+  energy_rows_u_.assign(bar_rows_.size(), 0.0);
   const std::size_t nrows = node_rows_.size();
   row_damping_.assign(nrows, 0.0);
   row_load_mid_.assign(nrows, 0.0);
@@ -355,7 +375,7 @@ bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k
 
 } // namespace
 
-void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane) {
+void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, bool energies) {
   const bool per_bar = table_.per_bar();
   const double* kb = per_bar ? table_.k_bar().data() : nullptr;
   const double* epb = per_bar ? table_.e_p_bar().data() : nullptr;
@@ -375,7 +395,7 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane) {
                       ux_.data() + c0,
                       uy_.data() + c0,
                       uz_.data() + c0,
-                      s_plane + fi.plane_offset + std::size_t{fi.ni} * row.j,
+                      s_plane + fi.plane_offset + std::size_t{fi.plane_stride} * row.j,
                       h_.data() + b0};
       const index_t n = fi.ni;
       const bool intact = !row_damaged_[r];
@@ -397,6 +417,9 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane) {
           v.s[n - 1] *= scale;
         }
       }
+      // On a report step an intact row's elastic energy, its displacements still in cache.
+      if (energies && intact && !past && !per_bar)
+        energy_rows_u_[r] = intact_row_energy(r);
       if (!past)
         continue;
       // Slow path: some bar strained past its history. Recompute its strain, raise the
@@ -425,16 +448,64 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane) {
 
 namespace {
 
-// f_i = sum over the 14 links of s_bar * (r0 + u_other - u_i), for i in [ilo, ihi) where
-// every link is present, in link order, written as sum s (r0 + u_other) - u_i sum s (two
-// fewer operations per link; measured +3 %).
+// Links [B, E) of a row's fused gather into the running sums (fx, fy, fz, fs): the first
+// chunk starts them, the last one turns them into forces. Chunks of a few links keep their
+// pointers in registers; one pass over all 14 needs 56 and reloads them from the stack.
+template <int B, int E, bool First, bool Last>
+void gather_chunk(const double* const* sb, const double* const* ox, const double* const* oy,
+                  const double* const* oz, const double* rx, const double* ry, const double* rz,
+                  index_t ilo, index_t ihi, const double* __restrict ux,
+                  const double* __restrict uy, const double* __restrict uz,
+                  double* __restrict fx, double* __restrict fy, double* __restrict fz,
+                  double* __restrict fs) {
+  constexpr int N = E - B;
+  const double *s_[N], *x_[N], *y_[N], *z_[N];
+  double rx_[N], ry_[N], rz_[N];
+  for (int l = 0; l < N; ++l) {
+    s_[l] = sb[B + l];
+    x_[l] = ox[B + l];
+    y_[l] = oy[B + l];
+    z_[l] = oz[B + l];
+    rx_[l] = rx[B + l];
+    ry_[l] = ry[B + l];
+    rz_[l] = rz[B + l];
+  }
+#pragma omp simd
+  for (index_t i = ilo; i < ihi; ++i) {
+    double ax = First ? 0.0 : fx[i], ay = First ? 0.0 : fy[i], az = First ? 0.0 : fz[i],
+           st = First ? 0.0 : fs[i];
+#pragma GCC unroll 14
+    for (int l = 0; l < N; ++l) {
+      const double t = s_[l][i];
+      ax += t * (rx_[l] + x_[l][i]);
+      ay += t * (ry_[l] + y_[l][i]);
+      az += t * (rz_[l] + z_[l][i]);
+      st += t;
+    }
+    if constexpr (Last) {
+      fx[i] = ax - st * ux[i];
+      fy[i] = ay - st * uy[i];
+      fz[i] = az - st * uz[i];
+    } else {
+      fx[i] = ax;
+      fy[i] = ay;
+      fz[i] = az;
+      fs[i] = st;
+    }
+  }
+}
+
+// f_i = sum over the row's links of s_bar * (r0 + u_other - u_i), for i in [ilo, ihi) where
+// the fused pass applies, in link order, written as sum s (r0 + u_other) - u_i sum s (two
+// fewer operations per link; measured +3 %). The sums run in link order whatever the
+// chunking, so the chunks change no result.
 template <int NL>
 void gather_fused(const RowLink* links, index_t ilo, index_t ihi, const double* s_plane,
                   const double* s_below, const double* __restrict ux_all,
                   const double* __restrict uy_all, const double* __restrict uz_all,
                   const double* __restrict ux, const double* __restrict uy,
                   const double* __restrict uz, double* __restrict fx, double* __restrict fy,
-                  double* __restrict fz) {
+                  double* __restrict fz, double* __restrict fs) {
   const double* sb[NL];
   const double *ox[NL], *oy[NL], *oz[NL];
   double rx[NL], ry[NL], rz[NL];
@@ -447,21 +518,15 @@ void gather_fused(const RowLink* links, index_t ilo, index_t ihi, const double* 
     ry[l] = links[l].r0.y;
     rz[l] = links[l].r0.z;
   }
-#pragma omp simd
-  for (index_t i = ilo; i < ihi; ++i) {
-    double ax = 0.0, ay = 0.0, az = 0.0, st = 0.0;
-#pragma GCC unroll 14
-    for (int l = 0; l < NL; ++l) {
-      const double t = sb[l][i];
-      ax += t * (rx[l] + ox[l][i]);
-      ay += t * (ry[l] + oy[l][i]);
-      az += t * (rz[l] + oz[l][i]);
-      st += t;
-    }
-    fx[i] = ax - st * ux[i];
-    fy[i] = ay - st * uy[i];
-    fz[i] = az - st * uz[i];
-  }
+  constexpr int C = 4; // links per chunk (measured on 64^3: 2 to 7 alike, 14 in one pass 10 % slower)
+  auto chunk = [&]<int B>(auto self, std::integral_constant<int, B>) {
+    constexpr int E = B + C < NL ? B + C : NL;
+    gather_chunk<B, E, B == 0, E == NL>(sb, ox, oy, oz, rx, ry, rz, ilo, ihi, ux, uy, uz, fx, fy,
+                                        fz, fs);
+    if constexpr (E < NL)
+      self(self, std::integral_constant<int, E>{});
+  };
+  chunk(chunk, std::integral_constant<int, 0>{});
 }
 
 } // namespace
@@ -564,18 +629,13 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
       }
       const RowLink* links = &row_links_[kMaxRowLinks * r];
       const int nl = row_link_count_[r];
-      // Where all the row's links are present (all but its ends), one fused pass over the
-      // row; at the ends link by link. Which node takes which path depends on the lattice
+      // One fused pass over [ilo, ihi) (row_fused_: the whole row but in the first and last
+      // rows), link by link outside it. Which node takes which path depends on the lattice
       // alone, so the sums do not depend on the threads.
-      index_t ilo = 0, ihi = n;
-      for (int l = 0; l < nl; ++l) {
-        ilo = std::max(ilo, links[l].ilo);
-        ihi = std::min(ihi, links[l].ihi);
-      }
-      ihi = std::max(ilo, ihi);
+      auto [ilo, ihi] = row_fused_[r];
       const auto fused = [&](auto count) {
         gather_fused<decltype(count)::value>(links, ilo, ihi, s_plane, s_below, ux_.data(),
-                                             uy_.data(), uz_.data(), ux, uy, uz, fx, fy, fz);
+                                             uy_.data(), uz_.data(), ux, uy, uz, fx, fy, fz, fw);
       };
       switch (nl) { // rows inside a box have 14 links; rows on its faces and edges fewer
       case 14:
@@ -677,11 +737,11 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
         const double* s_below =
             k > 0 ? plane_buffers_[static_cast<std::size_t>((k - 1) % 2)].data() : nullptr;
         if (l1 > l0)
-          bar_rows(lines_[l1 - 1].bar_begin, lines_[l1 - 1].bar_end, s_plane);
+          bar_rows(lines_[l1 - 1].bar_begin, lines_[l1 - 1].bar_end, s_plane, Report);
 #pragma omp barrier
         for (std::int64_t l = l0; l < l1; ++l) {
           if (l != l1 - 1)
-            bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane);
+            bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane, Report);
           node_rows_range<Damped, Loads, Report>(lines_[l].node_begin, lines_[l].node_end, s_plane,
                                                  s_below);
         }
@@ -704,7 +764,7 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
       if (p1 > p0) {
         double* top = buffer(p1 - 1);
         for (std::size_t l = planes_[p1 - 1].line_begin; l < planes_[p1 - 1].line_end; ++l)
-          bar_rows(lines_[l].bar_begin, lines_[l].bar_end, top);
+          bar_rows(lines_[l].bar_begin, lines_[l].bar_end, top, Report);
       }
 #pragma omp barrier
       for (std::int64_t k = p0; k < p1; ++k) {
@@ -712,7 +772,7 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
         const double* s_below = k > 0 ? buffer(k - 1) : nullptr;
         for (std::size_t l = planes_[k].line_begin; l < planes_[k].line_end; ++l) {
           if (k != p1 - 1)
-            bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane);
+            bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane, Report);
           node_rows_range<Damped, Loads, Report>(lines_[l].node_begin, lines_[l].node_end, s_plane,
                                                  s_below);
         }
@@ -724,11 +784,10 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
 // Force of its bars on one node at u_n, from the bar law and the history.
 Vec3 Simulation::node_force(index_t node) const {
   const NodeAddress a = lat_.node_address(node);
-  const NodeRow row{a.centre, a.j, a.k,
-                    a.centre ? lat_.centre(0, a.j, a.k) : lat_.corner(0, a.j, a.k),
-                    a.centre ? lat_.nx() : lat_.nx() + 1};
-  RowLink links[kMaxRowLinks];
-  const int nl = row_links(lat_, row, links);
+  // The node's row: line (j, k) holds its corner row, then its centre row if it has one.
+  const std::size_t r = lines_[a.j + (lat_.ny() + 1ull) * a.k].node_begin + (a.centre ? 1 : 0);
+  const RowLink* links = &row_links_[kMaxRowLinks * r];
+  const int nl = row_link_count_[r];
   Vec3 f;
   for (int l = 0; l < nl; ++l) {
     const RowLink& L = links[l];
@@ -846,7 +905,7 @@ void Simulation::step(bool report) {
     // Damping: the part of this step's dissipation a dt v_n . m v_n that lies before t_n,
     // taken as half of it (the exact split a m v_n . dt v_{n-1/2} / 2 differs by O(dt^2)).
     const double damping_half = 0.5 * damping;
-    const BarEnergies bars = bar_energies();
+    const BarEnergies bars = sum_bar_energies(true); // intact rows done in the bar pass
     const double elastic = bars.elastic, damage = bars.damage;
     if (step_ == 0)
       ledger_.set_initial(elastic + kinetic);
@@ -924,41 +983,67 @@ template <class Rows, class F> void Simulation::for_each_bar_row(Rows&& rows, F&
   }
 }
 
-Simulation::BarEnergies Simulation::bar_energies() const {
+template <class F> void Simulation::visit_intact_row(std::size_t r, F&& visit) const {
+  const BarRow& row = bar_rows_[r];
+  const FamilyInfo& fi = lat_.family(row.family);
+  const index_t a0 = fi.a.at(0, row.j, row.k), c0 = fi.b.at(0, row.j, row.k);
+  const double* __restrict uax = ux_.data() + a0;
+  const double* __restrict uay = uy_.data() + a0;
+  const double* __restrict uaz = uz_.data() + a0;
+  const double* __restrict ubx = ux_.data() + c0;
+  const double* __restrict uby = uy_.data() + c0;
+  const double* __restrict ubz = uz_.data() + c0;
+  auto extension = [&](index_t i) {
+    const double dx = fi.d0.x + (ubx[i] - uax[i]), dy = fi.d0.y + (uby[i] - uay[i]),
+                 dz = fi.d0.z + (ubz[i] - uaz[i]);
+    return std::sqrt(dx * dx + dy * dy + dz * dz) - fi.l0;
+  };
+  visit(lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k), fi.ni,
+        table_.family(row.family).k, extension);
+}
+
+template <class F> void Simulation::for_each_intact_row(F&& visit) const {
+  if (table_.per_bar())
+    return;
+#pragma omp parallel for schedule(static) if (lat_.num_bars() > kParallelMinItems)
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r)
+    if (!row_damaged_[r])
+      visit_intact_row(r, [&](index_t b0, index_t n, double k, auto&& extension) {
+        visit(r, b0, n, k, extension);
+      });
+}
+
+double Simulation::intact_row_energy(std::size_t r) const {
+  // Every bar elastic: U = k l0^2 e^2 / 2 = k (l - l0)^2 / 2 with the row's inner and end area
+  // factors; nothing dissipated.
+  double u = 0.0;
+  visit_intact_row(r, [&](index_t, index_t n, double k, auto&& extension) {
+    double sum = 0.0;
+    const index_t last = n - 1;
+#pragma omp simd reduction(+ : sum)
+    for (index_t i = 1; i < last; ++i) {
+      const double dl = extension(i);
+      sum += dl * dl;
+    }
+    const double e0 = extension(0), e1 = last > 0 ? extension(last) : 0.0;
+    u = 0.5 * k * (bar_rows_[r].factor * sum + bar_rows_[r].end_factor * (e0 * e0 + e1 * e1));
+  });
+  return u;
+}
+
+Simulation::BarEnergies Simulation::sum_bar_energies(bool intact_done) const {
   std::vector<double>& u = energy_rows_u_;
   std::vector<double>& d = energy_rows_d_;
-  u.assign(bar_rows_.size(), 0.0);
   d.assign(bar_rows_.size(), 0.0);
   const bool per_bar = table_.per_bar();
+  const auto nrows = static_cast<std::ptrdiff_t>(bar_rows_.size());
 #pragma omp parallel for schedule(static) if (lat_.num_bars() > kParallelMinItems)
-  for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
+  for (std::ptrdiff_t q = 0; q < nrows; ++q) {
+    const auto r = static_cast<std::size_t>(q);
     if (row_damaged_[r] || per_bar)
-      continue; // the general law below
-    // Intact row, uniform material: every bar elastic, U = k l0^2 e^2 / 2, nothing dissipated.
-    const BarRow& row = bar_rows_[r];
-    const FamilyInfo& fi = lat_.family(row.family);
-    const FamilyMaterial& mat = table_.family(row.family);
-    const index_t a0 = fi.a.at(0, row.j, row.k), c0 = fi.b.at(0, row.j, row.k);
-    const double* __restrict uax = ux_.data() + a0;
-    const double* __restrict uay = uy_.data() + a0;
-    const double* __restrict uaz = uz_.data() + a0;
-    const double* __restrict ubx = ux_.data() + c0;
-    const double* __restrict uby = uy_.data() + c0;
-    const double* __restrict ubz = uz_.data() + c0;
-    auto dl2 = [&](index_t i) {
-      const double dx = fi.d0.x + (ubx[i] - uax[i]), dy = fi.d0.y + (uby[i] - uay[i]),
-                   dz = fi.d0.z + (ubz[i] - uaz[i]);
-      const double dl = std::sqrt(dx * dx + dy * dy + dz * dz) - fi.l0;
-      return dl * dl;
-    };
-    double sum = 0.0;
-    const index_t last = fi.ni - 1;
-#pragma omp simd reduction(+ : sum)
-    for (index_t i = 1; i < last; ++i)
-      sum += dl2(i);
-    const double ends = dl2(0) + (last > 0 ? dl2(last) : 0.0);
-    // k e^2 l0^2 / 2 = k (l - l0)^2 / 2, the row's inner and end bars with their area factors.
-    u[r] = 0.5 * mat.k * (row.factor * sum + row.end_factor * ends);
+      u[r] = 0.0; // summed bar by bar below
+    else if (!intact_done)
+      u[r] = intact_row_energy(r);
   }
   for_each_bar_row(
       [&](std::size_t r) { return row_damaged_[r] || per_bar; },
@@ -974,6 +1059,10 @@ Simulation::BarEnergies Simulation::bar_energies() const {
   return out;
 }
 
+Simulation::BarEnergies Simulation::bar_energies() const {
+  return sum_bar_energies(false);
+}
+
 double Simulation::stored_energy() const {
   return bar_energies().elastic;
 }
@@ -983,7 +1072,18 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
   state.resize(lat_.num_bars());
   damage.resize(lat_.num_bars());
   force.resize(lat_.num_bars());
-  for_each_bar_row([](std::size_t) { return true; },
+  // Intact rows of a uniform material: F = k (l - l0) times the area factor, no damage.
+  for_each_intact_row([&](std::size_t r, index_t b0, index_t n, double k, auto&& extension) {
+    const double inner = k * bar_rows_[r].factor, end = k * bar_rows_[r].end_factor;
+#pragma omp simd
+    for (index_t i = 0; i < n; ++i) {
+      force[b0 + i] = (i == 0 || i + 1 == n ? end : inner) * extension(i);
+      damage[b0 + i] = 0.0;
+      state[b0 + i] = 0;
+    }
+  });
+  const bool per_bar = table_.per_bar();
+  for_each_bar_row([&](std::size_t r) { return row_damaged_[r] || per_bar; },
                    [&](std::size_t, index_t b, index_t, index_t, double e, const BilinearLaw& law) {
                      const double h = h_[b];
                      state[b] = static_cast<std::uint8_t>(law.state(h));
@@ -1133,7 +1233,7 @@ double Simulation::bytes_per_module() const {
   for (const auto* v :
        {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &mass_, &inv_mass_, &px_, &py_, &pz_, &h_})
     total += bytes(*v);
-  total += bytes(held_) + bytes(row_links_) + bytes(row_link_count_) + bytes(row_held_) +
+  total += bytes(held_) + bytes(row_links_) + bytes(row_link_count_) + bytes(row_fused_) + bytes(row_held_) +
            bytes(row_damaged_) + bytes(node_rows_) + bytes(bar_rows_);
   for (const auto& b : plane_buffers_)
     total += bytes(b);

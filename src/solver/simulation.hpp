@@ -158,8 +158,18 @@ private:
   // visit(row, bar, node a, node b, strain, law) for every bar of the rows r with rows(r),
   // rows in parallel.
   template <class Rows, class F> void for_each_bar_row(Rows&& rows, F&& visit) const;
-  // Bars of plane rows [begin, end) into that plane's force buffer `s`.
-  void bar_rows(std::size_t begin, std::size_t end, double* s);
+  // visit(row, first bar, bar count, k = E A / l0, extension(i) = l - l0) for every bar row
+  // never strained past e_p, rows in parallel; none when the material varies per bar.
+  template <class F> void for_each_intact_row(F&& visit) const;
+  // Bars of plane rows [begin, end) into that plane's force buffer `s`; with `energies`, the
+  // elastic energy of each intact row into energy_rows_u_.
+  void bar_rows(std::size_t begin, std::size_t end, double* s, bool energies);
+  // Elastic and dissipated energy of all bars; `intact_done`: the bar pass has already put the
+  // intact rows' energies in energy_rows_u_.
+  BarEnergies sum_bar_energies(bool intact_done) const;
+  // visit(first bar, bar count, k = E A / l0, extension(i) = l - l0) for intact bar row r.
+  template <class F> void visit_intact_row(std::size_t r, F&& visit) const;
+  double intact_row_energy(std::size_t r) const;
   // Nodes of plane rows [begin, end), with the bar forces of their plane and the one below.
   template <bool Damped, bool Loads, bool Report>
   void node_rows_range(std::size_t begin, std::size_t end, const double* s_plane,
@@ -179,6 +189,7 @@ private:
   std::vector<NodeRow> node_rows_;
   std::vector<RowLink> row_links_; // kMaxRowLinks per node row
   std::vector<std::uint8_t> row_link_count_;
+  std::vector<std::pair<index_t, index_t>> row_fused_; // per node row: range of the fused gather
   std::vector<std::uint8_t> row_held_; // per node row: some DOF is fixed or imposed
   struct BarRow {
     int family;
