@@ -15,6 +15,7 @@ PKGS=(
   libgtest-dev libgmock-dev        # tests
   libbenchmark-dev                 # microbenchmarks (bench/micro.cpp)
   clang libclang-rt-14-dev         # tests: libFuzzer with sanitizers on the case reader
+  libopenmpi-dev openmpi-bin       # distributed runs (MPI); tests run 1 to 3 ranks
 )
 missing=()
 for p in "${PKGS[@]}"; do

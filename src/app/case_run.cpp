@@ -407,8 +407,8 @@ int modes_command(const std::string& path, int count, int threads) {
   fmt::print("{:>5} {:>15} {:>13} {:>15} {:>7} {:>7} {:>7}{}\n", "mode", "frequency [Hz]",
              "period [s]", "omega [rad/s]", "x [%]", "y [%]", "z [%]",
              loaded ? fmt::format(" {:>9}", "load [%]") : "");
-  const Mode* lowest = nullptr; // the lowest mode that stores energy
-  double load_sum = 0.0;        // the load shares of the modes listed
+  const Mode* lowest = nullptr;     // the lowest mode that stores energy
+  double load_sum = 0.0;            // the load shares of the modes listed
   const Mode* load_first = nullptr; // the lowest mode with at least 1 % of the static work
   for (std::size_t m = 0; m < modes.size(); ++m) {
     const Mode& mode = modes[m];

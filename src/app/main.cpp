@@ -1,13 +1,15 @@
 // The ldem command line.
-#include "app/bench.hpp"
 #include "analysis/crack.hpp"
 #include "analysis/fatigue.hpp"
+#include "app/bench.hpp"
 #include "app/case_run.hpp"
 #include "app/ensemble.hpp"
 #include "io/case_spec.hpp"
+#include "parallel/comm.hpp"
 #include "util/error.hpp"
 
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <fmt/format.h>
 #include <iostream>
 
@@ -16,6 +18,7 @@ constexpr const char* kVersion = "0.1.0";
 }
 
 int main(int argc, char** argv) {
+  const ldem::ProcessGroup processes(argc, argv);
   CLI::App app{"ldem: crack propagation in quasi-brittle materials by the Lattice Discrete "
                "Element Method (Riera's cubic truss lattice, explicit dynamics, bilinear "
                "softening bars, full energy balance).\n\nA case is a TOML file "
@@ -63,7 +66,8 @@ int main(int argc, char** argv) {
   cmd_resume->add_flag("--no-plot", resume_no_plot, "Do not make the PNG plots");
 
   std::string plot_dir;
-  auto* cmd_plot = app.add_subcommand("plot", "Make crack.png, energy.png (and fields.png) of an output folder");
+  auto* cmd_plot =
+      app.add_subcommand("plot", "Make crack.png, energy.png (and fields.png) of an output folder");
   cmd_plot->add_option("dir", plot_dir, "Output folder of a run")->required();
 
   std::string analyze_what, analyze_dir;
@@ -78,10 +82,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"crack", "fatigue"}));
   cmd_analyze->add_option("dir", analyze_dir, "Output folder of a run")->required();
   std::string analyze_window;
-  cmd_analyze->add_option("--window", analyze_window,
-                          "fatigue: representative points over the cycles at constant "
-                          "amplitude (\"constant\") or every cycle (\"cycles\"); default "
-                          "the case's analysis.fatigue_window")
+  cmd_analyze
+      ->add_option("--window", analyze_window,
+                   "fatigue: representative points over the cycles at constant "
+                   "amplitude (\"constant\") or every cycle (\"cycles\"); default "
+                   "the case's analysis.fatigue_window")
       ->check(CLI::IsMember({"constant", "cycles"}));
 
   ldem::EnsembleOptions ens;
@@ -139,6 +144,17 @@ int main(int argc, char** argv) {
     std::cout << app.help();
     return 0;
   }
+  // Several processes (mpirun -np P): only `ldem bench` is distributed so far; anything else
+  // would run P copies into the same folder.
+  if (ldem::process_count() > 1 && !cmd_bench->parsed()) {
+    if (ldem::process_rank() == 0)
+      fmt::print(stderr,
+                 "ldem: error: `ldem {}` runs in one process ({} were started); with "
+                 "MPI only `ldem bench` is distributed so far. Start it without mpirun "
+                 "and give it the cores with --threads\n",
+                 app.get_subcommands().front()->get_name(), ldem::process_count());
+    return 2;
+  }
   try {
     if (cmd_run->parsed()) {
       if (run.out_dir.empty()) {
@@ -164,7 +180,8 @@ int main(int argc, char** argv) {
     }
     if (cmd_analyze->parsed()) {
       if (analyze_what == "fatigue")
-        fmt::print("{}\n", ldem::fatigue_report(ldem::analyze_fatigue_dir(analyze_dir, analyze_window)));
+        fmt::print("{}\n",
+                   ldem::fatigue_report(ldem::analyze_fatigue_dir(analyze_dir, analyze_window)));
       else
         fmt::print("{}\n", ldem::crack_report(ldem::analyze_crack_dir(analyze_dir)));
       return 0;
@@ -179,9 +196,10 @@ int main(int argc, char** argv) {
       bench.nz = modules[2];
       const ldem::BenchResult r = ldem::run_bench(bench);
       fmt::print("lattice {} x {} x {}: dt = {:.4g} s (stable {:.4g} s), {:.1f} bytes/module, "
-                 "energy drift {:.2e}\n",
+                 "energy drift {}\n",
                  bench.nx, bench.ny, bench.nz, r.dt, r.dt_stable, r.bytes_per_module,
-                 r.energy_drift);
+                 std::isnan(r.energy_drift) ? std::string("not measured (distributed)")
+                                            : fmt::format("{:.2e}", r.energy_drift));
       fmt::print("{}\n", ldem::bench_line(r));
     }
   } catch (const ldem::InputError& e) {

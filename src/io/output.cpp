@@ -193,7 +193,8 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   const auto nb = static_cast<std::ptrdiff_t>(nb_);
 #pragma omp parallel for schedule(static)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
-    damage_f_[static_cast<std::size_t>(b)] = static_cast<float>(damage_[static_cast<std::size_t>(b)]);
+    damage_f_[static_cast<std::size_t>(b)] =
+        static_cast<float>(damage_[static_cast<std::size_t>(b)]);
     force_f_[static_cast<std::size_t>(b)] = static_cast<float>(force_[static_cast<std::size_t>(b)]);
   }
   OutputFile out(path);

@@ -61,9 +61,9 @@ struct FamilyInfo {
   // index -1 and ni of every row are zero pads (the buffer's users keep them zero).
   index_t plane_offset = 0;
   index_t plane_stride = 0;
-  NodeMap a, b;                   // first and second node of bar (i,j,k)
-  Vec3 d0;                        // reference vector X_b - X_a
-  double l0 = 0.0;                // reference length
+  NodeMap a, b;    // first and second node of bar (i,j,k)
+  Vec3 d0;         // reference vector X_b - X_a
+  double l0 = 0.0; // reference length
   BarKind kind = BarKind::Normal;
   index_t count() const { return ni * nj * nk; }
 };

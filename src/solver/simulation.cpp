@@ -115,8 +115,8 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     break;
   case TimeStep::Rule::Paper:
     if (!(opt_.step.courant > 0.0 && opt_.step.courant <= 1.0))
-      throw InputError(fmt::format(
-          "time step courant number: expected a value in (0, 1], got {:g}", opt_.step.courant));
+      throw InputError(fmt::format("time step courant number: expected a value in (0, 1], got {:g}",
+                                   opt_.step.courant));
     dt_ = opt_.step.courant * lat_.L() / c;
     break;
   }
@@ -259,6 +259,22 @@ void Simulation::set_velocity(const std::function<Vec3(Vec3)>& v_of_X) {
   }
 }
 
+void Simulation::set_time_step(double dt) {
+  if (step_ != 0)
+    throw InputError("time step: dt can only change before the first step");
+  if (!(dt > 0.0) || dt > stable_.dt)
+    throw InputError(fmt::format("time step: expected 0 < dt <= {:.4g} s (the stable limit), "
+                                 "got {:g}",
+                                 stable_.dt, dt));
+  for (index_t n = 0; n < lat_.num_nodes(); ++n) {
+    const Vec3 v = half_step_velocity(n);
+    wx_[n] = ux_[n] - dt * v.x;
+    wy_[n] = uy_[n] - dt * v.y;
+    wz_[n] = uz_[n] - dt * v.z;
+  }
+  dt_ = dt;
+}
+
 // v_{n-1/2} is (u_n - u_{n-1}) / dt: the state is two displacement fields.
 Vec3 Simulation::half_step_velocity(index_t node) const {
   return {(ux_[node] - wx_[node]) / dt_, (uy_[node] - wy_[node]) / dt_,
@@ -277,6 +293,19 @@ void Simulation::set_displacement(index_t node, Vec3 u) {
   uy_[node] = u.y;
   uz_[node] = u.z;
   set_half_step_velocity(node, v);
+}
+
+void Simulation::append_displacements(index_t first, index_t count,
+                                      std::vector<double>& out) const {
+  for (const std::vector<double>* u : {&ux_, &uy_, &uz_})
+    out.insert(out.end(), u->begin() + first, u->begin() + first + count);
+}
+
+void Simulation::assign_displacements(index_t first, index_t count, const double* in) {
+  for (std::vector<double>* u : {&ux_, &uy_, &uz_}) {
+    std::copy(in, in + count, u->begin() + first);
+    in += count;
+  }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -455,9 +484,8 @@ template <int B, int E, bool First, bool Last>
 void gather_chunk(const double* const* sb, const double* const* ox, const double* const* oy,
                   const double* const* oz, const double* rx, const double* ry, const double* rz,
                   index_t ilo, index_t ihi, const double* __restrict ux,
-                  const double* __restrict uy, const double* __restrict uz,
-                  double* __restrict fx, double* __restrict fy, double* __restrict fz,
-                  double* __restrict fs) {
+                  const double* __restrict uy, const double* __restrict uz, double* __restrict fx,
+                  double* __restrict fy, double* __restrict fz, double* __restrict fs) {
   constexpr int N = E - B;
   const double *s_[N], *x_[N], *y_[N], *z_[N];
   double rx_[N], ry_[N], rz_[N];
@@ -518,7 +546,8 @@ void gather_fused(const RowLink* links, index_t ilo, index_t ihi, const double* 
     ry[l] = links[l].r0.y;
     rz[l] = links[l].r0.z;
   }
-  constexpr int C = 4; // links per chunk (measured on 64^3: 2 to 7 alike, 14 in one pass 10 % slower)
+  constexpr int C =
+      4; // links per chunk (measured on 64^3: 2 to 7 alike, 14 in one pass 10 % slower)
   auto chunk = [&]<int B>(auto self, std::integral_constant<int, B>) {
     constexpr int E = B + C < NL ? B + C : NL;
     gather_chunk<B, E, B == 0, E == NL>(sb, ox, oy, oz, rx, ry, rz, ilo, ihi, ux, uy, uz, fx, fy,
@@ -1233,8 +1262,8 @@ double Simulation::bytes_per_module() const {
   for (const auto* v :
        {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &mass_, &inv_mass_, &px_, &py_, &pz_, &h_})
     total += bytes(*v);
-  total += bytes(held_) + bytes(row_links_) + bytes(row_link_count_) + bytes(row_fused_) + bytes(row_held_) +
-           bytes(row_damaged_) + bytes(node_rows_) + bytes(bar_rows_);
+  total += bytes(held_) + bytes(row_links_) + bytes(row_link_count_) + bytes(row_fused_) +
+           bytes(row_held_) + bytes(row_damaged_) + bytes(node_rows_) + bytes(bar_rows_);
   for (const auto& b : plane_buffers_)
     total += bytes(b);
   if (table_.per_bar())

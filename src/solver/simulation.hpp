@@ -60,8 +60,8 @@ struct Conditions {
 struct TimeStep {
   enum class Rule { Safety, Given, Paper };
   Rule rule = Rule::Safety;
-  double safety = 0.9; // fraction of the stable step (Rule::Safety)
-  double dt = 0.0;     // Rule::Given
+  double safety = 0.9;  // fraction of the stable step (Rule::Safety)
+  double dt = 0.0;      // Rule::Given
   double courant = 0.6; // Rule::Paper: dt = courant L / c, c = sqrt(E_max / rho)
 };
 
@@ -95,6 +95,11 @@ public:
   // The boundary conditions and loads the simulation was built with.
   const Conditions& conditions() const { return cond_; }
 
+  // Replaces dt before the first step, the half-step velocities kept (distributed runs agree
+  // on the smallest of their ranks' steps). Throws InputError after the first step, or for a
+  // dt that is not positive or above the stable limit.
+  void set_time_step(double dt);
+
   // Initial velocities (before the first step), e.g. a ramp; taken as v_{-1/2}.
   void set_velocity(const std::function<Vec3(Vec3 X)>& v_of_X);
 
@@ -109,6 +114,11 @@ public:
   Vec3 displacement(index_t node) const { return {ux_[node], uy_[node], uz_[node]}; }
   Vec3 half_step_velocity(index_t node) const;
   void set_displacement(index_t node, Vec3 u);
+  // Halo exchange of distributed runs: u_n of nodes [first, first + count) appended to `out`
+  // as an x block, a y block and a z block; and u_n of those nodes set from such blocks
+  // (u_{n-1} untouched: for held ghost nodes it is never read).
+  void append_displacements(index_t first, index_t count, std::vector<double>& out) const;
+  void assign_displacements(index_t first, index_t count, const double* in);
   void set_half_step_velocity(index_t node, Vec3 v);
   BarState bar_state(index_t bar) const;
   double bar_history(index_t bar) const { return h_[bar]; }
@@ -190,7 +200,7 @@ private:
   std::vector<RowLink> row_links_; // kMaxRowLinks per node row
   std::vector<std::uint8_t> row_link_count_;
   std::vector<std::pair<index_t, index_t>> row_fused_; // per node row: range of the fused gather
-  std::vector<std::uint8_t> row_held_; // per node row: some DOF is fixed or imposed
+  std::vector<std::uint8_t> row_held_;                 // per node row: some DOF is fixed or imposed
   struct BarRow {
     int family;
     index_t j, k;

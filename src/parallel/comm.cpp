@@ -1,0 +1,136 @@
+#include "parallel/comm.hpp"
+
+#include "util/error.hpp"
+
+#include <cstdio>
+#include <cstdlib>
+
+#ifdef LDEM_HAVE_MPI
+#include <mpi.h>
+#endif
+
+namespace ldem {
+
+#ifdef LDEM_HAVE_MPI
+
+namespace {
+// MPI is started only under a launcher (mpirun, srun): started alone, ldem is one process
+// and does not pay for MPI's start-up (Open MPI would spawn a daemon for a lone process).
+bool g_active = false;
+
+bool under_launcher() {
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"})
+    if (std::getenv(v))
+      return true;
+  return false;
+}
+} // namespace
+
+ProcessGroup::ProcessGroup(int& argc, char**& argv) {
+  if (!under_launcher())
+    return;
+  int provided = 0;
+  // Only the main thread calls MPI; OpenMP threads work between the calls.
+  MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
+  g_active = true;
+  if (process_rank() != 0 && !std::freopen("/dev/null", "w", stdout))
+    std::perror("ldem: stdout of rank > 0");
+}
+
+ProcessGroup::~ProcessGroup() {
+  if (g_active)
+    MPI_Finalize();
+}
+
+int process_rank() {
+  int r = 0;
+  if (g_active)
+    MPI_Comm_rank(MPI_COMM_WORLD, &r);
+  return r;
+}
+
+int process_count() {
+  int n = 1;
+  if (g_active)
+    MPI_Comm_size(MPI_COMM_WORLD, &n);
+  return n;
+}
+
+bool built_with_mpi() {
+  return true;
+}
+
+void exchange_halos(SlabRun& run, std::vector<double> (&buf)[4]) {
+  if (!g_active)
+    return;
+  const int rank = run.slab().rank;
+  MPI_Request req[4];
+  int n = 0;
+  // buf[0], buf[1]: received from below, above; buf[2], buf[3]: sent below, above.
+  for (int side = 0; side < 2; ++side) {
+    const int dir = side == 0 ? -1 : +1;
+    const std::size_t size = run.halo_size(dir);
+    if (size == 0)
+      continue;
+    buf[side].resize(size);
+    MPI_Irecv(buf[side].data(), static_cast<int>(size), MPI_DOUBLE, rank + dir, 0, MPI_COMM_WORLD,
+              &req[n++]);
+    run.pack(dir, buf[2 + side]);
+    MPI_Isend(buf[2 + side].data(), static_cast<int>(size), MPI_DOUBLE, rank + dir, 0,
+              MPI_COMM_WORLD, &req[n++]);
+  }
+  MPI_Waitall(n, req, MPI_STATUSES_IGNORE);
+  for (int side = 0; side < 2; ++side)
+    if (run.halo_size(side == 0 ? -1 : +1) > 0)
+      run.unpack(side == 0 ? -1 : +1, buf[side]);
+}
+
+double min_over_processes(double x) {
+  if (!g_active)
+    return x;
+  double y = x;
+  MPI_Allreduce(&x, &y, 1, MPI_DOUBLE, MPI_MIN, MPI_COMM_WORLD);
+  return y;
+}
+
+double max_over_processes(double x) {
+  if (!g_active)
+    return x;
+  double y = x;
+  MPI_Allreduce(&x, &y, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+  return y;
+}
+
+void barrier() {
+  if (g_active)
+    MPI_Barrier(MPI_COMM_WORLD);
+}
+
+#else
+
+ProcessGroup::ProcessGroup(int&, char**&) {}
+ProcessGroup::~ProcessGroup() = default;
+int process_rank() {
+  return 0;
+}
+int process_count() {
+  return 1;
+}
+bool built_with_mpi() {
+  return false;
+}
+void exchange_halos(SlabRun& run, std::vector<double> (&)[4]) {
+  if (run.slab().ranks > 1)
+    throw InputError("a slab of several ranks needs a build with MPI");
+}
+double min_over_processes(double x) {
+  return x;
+}
+double max_over_processes(double x) {
+  return x;
+}
+void barrier() {}
+
+#endif
+
+} // namespace ldem

@@ -1,0 +1,34 @@
+// The processes of a run. Built with MPI (LDEM_HAVE_MPI) and started by mpirun, a run spans
+// the world's ranks; otherwise, and under a plain start, it is one process and every
+// function here is the identity.
+#pragma once
+
+#include "parallel/slab.hpp"
+
+#include <vector>
+
+namespace ldem {
+
+// Initialises MPI for the life of main (when built with it); ranks beyond the first send
+// their standard output nowhere, so that a run prints once.
+class ProcessGroup {
+public:
+  ProcessGroup(int& argc, char**& argv);
+  ~ProcessGroup();
+  ProcessGroup(const ProcessGroup&) = delete;
+  ProcessGroup& operator=(const ProcessGroup&) = delete;
+};
+
+int process_rank();
+int process_count();
+bool built_with_mpi();
+
+// Exchanges the ghost planes of a slab with the ranks below and above (non-blocking sends
+// and receives, then the unpacking); `buffers` holds four reusable vectors.
+void exchange_halos(SlabRun& run, std::vector<double> (&buffers)[4]);
+
+double min_over_processes(double x);
+double max_over_processes(double x);
+void barrier();
+
+} // namespace ldem

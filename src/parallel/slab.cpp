@@ -1,0 +1,132 @@
+#include "parallel/slab.hpp"
+
+#include "util/error.hpp"
+
+#include <fmt/format.h>
+
+namespace ldem {
+
+Slab make_slab(index_t nz, int ranks, int rank) {
+  if (ranks < 1 || rank < 0 || rank >= ranks)
+    throw InputError(fmt::format("rank {} of {} ranks: no such rank", rank, ranks));
+  if (nz < static_cast<index_t>(ranks))
+    throw InputError(fmt::format("lattice.modules: {} modules along z cannot be shared by {} "
+                                 "processes (each needs at least one module along z)",
+                                 nz, ranks));
+  Slab s;
+  s.rank = rank;
+  s.ranks = ranks;
+  s.nz = nz;
+  const auto first = [&](int p) {
+    return static_cast<index_t>(std::uint64_t{nz} * static_cast<std::uint64_t>(p) /
+                                static_cast<std::uint64_t>(ranks));
+  };
+  s.m0 = first(rank);
+  s.m1 = first(rank + 1);
+  s.w0 = s.below() ? s.m0 - 1 : 0;
+  s.w1 = s.above() ? s.m1 + 1 : nz;
+  return s;
+}
+
+namespace {
+
+// The window's ghost nodes (corner and centre planes received from the neighbours, and the
+// window's top corner plane, which no bar of an owned node reaches), all DOF held.
+Conditions with_ghosts(const Slab& slab, const Lattice& local, Conditions c) {
+  const index_t corners = (local.nx() + 1) * (local.ny() + 1), centres = local.nx() * local.ny();
+  NodeSet ghosts{"ghost planes", {}};
+  auto add = [&](index_t first, index_t count) {
+    for (index_t n = 0; n < count; ++n)
+      ghosts.nodes.push_back(first + n);
+  };
+  const index_t top = slab.m1 - slab.w0; // local plane of module m1
+  if (slab.below())
+    add(local.corner(0, 0, 0), corners);
+  if (slab.above()) {
+    add(local.corner(0, 0, top), corners);
+    add(local.corner(0, 0, top + 1), corners);
+  }
+  if (slab.below())
+    add(local.centre(0, 0, 0), centres);
+  if (slab.above())
+    add(local.centre(0, 0, top), centres);
+  if (!ghosts.nodes.empty())
+    c.fixed.push_back({std::move(ghosts), kDofAll});
+  return c;
+}
+
+Simulation local_simulation(const Slab& slab, Lattice local, BarTable table, Conditions c,
+                            SolverOptions options) {
+  if (local.nz() != slab.local_nz())
+    throw InputError(fmt::format("slab of rank {}: local lattice of {} modules along z, the "
+                                 "window has {}",
+                                 slab.rank, local.nz(), slab.local_nz()));
+  Conditions all = with_ghosts(slab, local, std::move(c));
+  return Simulation(std::move(local), std::move(table), std::move(all), options);
+}
+
+} // namespace
+
+SlabRun::SlabRun(const Slab& slab, Lattice local, BarTable table, Conditions conditions,
+                 SolverOptions options)
+    : slab_(slab), sim_(local_simulation(slab, std::move(local), std::move(table),
+                                         std::move(conditions), options)) {}
+
+index_t SlabRun::local_node(const NodeAddress& g) const {
+  const Lattice& lat = sim_.lattice();
+  const index_t k = g.k - slab_.w0;
+  return g.centre ? lat.centre(g.i, g.j, k) : lat.corner(g.i, g.j, k);
+}
+
+NodeAddress SlabRun::global_address(index_t local) const {
+  NodeAddress a = sim_.lattice().node_address(local);
+  a.k += slab_.w0;
+  return a;
+}
+
+bool SlabRun::owns(index_t local) const {
+  const NodeAddress a = global_address(local);
+  if (a.k >= slab_.m0 && a.k < slab_.m1)
+    return true;
+  return !a.centre && a.k == slab_.nz && !slab_.above();
+}
+
+index_t SlabRun::send_plane(int dir) const {
+  return dir < 0 ? slab_.m0 - slab_.w0 : slab_.m1 - 1 - slab_.w0;
+}
+
+index_t SlabRun::recv_plane(int dir) const {
+  return dir < 0 ? slab_.m0 - 1 - slab_.w0 : slab_.m1 - slab_.w0;
+}
+
+std::size_t SlabRun::halo_size(int dir) const {
+  if (dir < 0 ? !slab_.below() : !slab_.above())
+    return 0;
+  const Lattice& lat = sim_.lattice();
+  return 3 * (std::size_t{lat.nx() + 1} * (lat.ny() + 1) + std::size_t{lat.nx()} * lat.ny());
+}
+
+void SlabRun::pack(int dir, std::vector<double>& out) const {
+  out.clear();
+  if (halo_size(dir) == 0)
+    return;
+  const Lattice& lat = sim_.lattice();
+  const index_t k = send_plane(dir);
+  sim_.append_displacements(lat.corner(0, 0, k), (lat.nx() + 1) * (lat.ny() + 1), out);
+  sim_.append_displacements(lat.centre(0, 0, k), lat.nx() * lat.ny(), out);
+}
+
+void SlabRun::unpack(int dir, const std::vector<double>& in) {
+  if (in.size() != halo_size(dir))
+    throw InputError(fmt::format("halo from rank {}: {} values, expected {}", slab_.rank + dir,
+                                 in.size(), halo_size(dir)));
+  if (in.empty())
+    return;
+  const Lattice& lat = sim_.lattice();
+  const index_t k = recv_plane(dir);
+  const index_t corners = (lat.nx() + 1) * (lat.ny() + 1);
+  sim_.assign_displacements(lat.corner(0, 0, k), corners, in.data());
+  sim_.assign_displacements(lat.centre(0, 0, k), lat.nx() * lat.ny(), in.data() + 3 * corners);
+}
+
+} // namespace ldem

@@ -1,0 +1,67 @@
+// A small body strained until bars soften and break, stepped whole or as slabs: shared by
+// the in-process slab test (test_slab.cpp) and the MPI check (mpi_check.cpp).
+#pragma once
+
+#include "helpers.hpp"
+#include "parallel/slab.hpp"
+
+#include <random>
+
+namespace ldem::testing {
+
+struct SlabScenario {
+  static constexpr index_t nx = 5, ny = 4, nz = 7;
+  static constexpr int steps = 300;
+  // e_p = 1e-3, random displacements of 1e-3 L and velocities of 1e-4 c: strains of a few
+  // 1e-3, so that some bars soften and about a tenth break during the run, on both sides of
+  // the slab boundaries.
+  static MaterialSpec material() { return unit_material(1e-3, 3.0); }
+
+  // Random displacement or velocity of node (i, j, k), the same draw in every process.
+  static Vec3 draw(std::uint64_t seed, const NodeAddress& a, double amplitude) {
+    std::mt19937_64 rng(seed ^
+                        (a.i + 1000003ull * (a.j + 1000003ull * (a.k + 7919ull * a.centre))));
+    std::uniform_real_distribution<double> u(-amplitude, amplitude);
+    const double x = u(rng), y = u(rng), z = u(rng);
+    return {x, y, z};
+  }
+
+  // The initial state of a node whose address in the whole body is `a`.
+  static void start(Simulation& sim, index_t node, const NodeAddress& a) {
+    sim.set_displacement(node, draw(1, a, 1e-3));
+    sim.set_half_step_velocity(node, draw(2, a, 1e-4));
+  }
+
+  static Simulation whole() {
+    Simulation sim = make_sim(nx, ny, nz, 1.0, material());
+    for (index_t n = 0; n < sim.lattice().num_nodes(); ++n)
+      start(sim, n, sim.lattice().node_address(n));
+    return sim;
+  }
+
+  // Rank `rank` of `ranks`, with the whole body's time step `dt`, started.
+  static SlabRun slab(int ranks, int rank, double dt) {
+    const Slab s = make_slab(nz, ranks, rank);
+    Lattice local(nx, ny, s.local_nz(), 1.0);
+    BarTable table(local, material());
+    SolverOptions given;
+    given.step.rule = TimeStep::Rule::Given;
+    given.step.dt = dt;
+    SlabRun run(s, std::move(local), std::move(table), Conditions{}, given);
+    for (index_t n = 0; n < run.sim().lattice().num_nodes(); ++n)
+      start(run.sim(), n, run.global_address(n));
+    return run;
+  }
+
+  // Whether bar `b` of the slab's window lies in a bar plane the slab owns, and its number in
+  // the whole body (lattice `whole`).
+  static bool owned_bar(const SlabRun& run, const Lattice& whole, index_t b, index_t& global) {
+    const BarAddress a = run.sim().lattice().bar_address(b);
+    const Slab& s = run.slab();
+    const index_t k = a.k + s.w0;
+    global = whole.bar(a.family, a.i, a.j, k);
+    return (k >= s.m0 && k < s.m1) || (k == nz && !s.above());
+  }
+};
+
+} // namespace ldem::testing
