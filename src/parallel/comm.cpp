@@ -85,20 +85,21 @@ void exchange_halos(SlabRun& run, std::vector<double> (&buf)[4]) {
       run.unpack(side == 0 ? -1 : +1, buf[side]);
 }
 
-double min_over_processes(double x) {
-  if (!g_active)
-    return x;
+namespace {
+double reduce(double x, MPI_Op op) {
   double y = x;
-  MPI_Allreduce(&x, &y, 1, MPI_DOUBLE, MPI_MIN, MPI_COMM_WORLD);
+  if (g_active)
+    MPI_Allreduce(&x, &y, 1, MPI_DOUBLE, op, MPI_COMM_WORLD);
   return y;
+}
+} // namespace
+
+double min_over_processes(double x) {
+  return reduce(x, MPI_MIN);
 }
 
 double max_over_processes(double x) {
-  if (!g_active)
-    return x;
-  double y = x;
-  MPI_Allreduce(&x, &y, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
-  return y;
+  return reduce(x, MPI_MAX);
 }
 
 void barrier() {
