@@ -53,6 +53,14 @@ struct SlabScenario {
     return run;
   }
 
+  // Sum in order, from zero, as the whole body's report does.
+  static double ordered_sum(const std::vector<double>& v) {
+    double sum = 0.0;
+    for (double x : v)
+      sum += x;
+    return sum;
+  }
+
   // Whether bar `b` of the slab's window lies in a bar plane the slab owns, and its number in
   // the whole body (lattice `whole`).
   static bool owned_bar(const SlabRun& run, const Lattice& whole, index_t b, index_t& global) {

@@ -34,9 +34,10 @@ void expect_slabs_match_whole_body(int ranks) {
     slabs.push_back(S::slab(ranks, r, whole.dt()));
   std::vector<double> buf;
   for (int step = 0; step < S::steps; ++step) {
-    whole.step();
+    const bool report = step + 1 == S::steps; // the last step reports its energies
+    whole.step(report);
     for (SlabRun& s : slabs)
-      s.sim().step();
+      s.sim().step(report);
     for (int r = 1; r < ranks; ++r) { // r's bottom planes to r - 1, r - 1's top planes to r
       slabs[r].pack(-1, buf);
       slabs[r - 1].unpack(+1, buf);
@@ -70,6 +71,15 @@ void expect_slabs_match_whole_body(int ranks) {
     }
   }
   EXPECT_EQ(owned, std::size_t{lat.num_nodes()}); // every node owned exactly once
+  // The energies: the slabs' owned rows, slab after slab, summed in order.
+  std::vector<double> elastic, damage, kinetic;
+  for (const SlabRun& s : slabs)
+    s.append_owned_energy_rows(elastic, damage, kinetic);
+  const EnergyReport& e = whole.last_report();
+  EXPECT_GT(e.damage_dissipated, 0.0);
+  EXPECT_EQ(S::ordered_sum(elastic), e.elastic);
+  EXPECT_EQ(S::ordered_sum(damage), e.damage_dissipated);
+  EXPECT_EQ(S::ordered_sum(kinetic), e.kinetic);
 }
 
 TEST(Slab, SlabsStepBitForBitLikeTheWholeBody) {

@@ -16,7 +16,7 @@ struct BenchResult {
   std::uint64_t bars = 0, nodes = 0, steps = 0;
   int threads = 0, processes = 1;
   double wall_s = 0.0, bar_updates_per_s = 0.0, bytes_per_module = 0.0, dt = 0.0, dt_stable = 0.0;
-  double energy_drift = 0.0; // relative change of total energy over the run (NaN: not measured)
+  double energy_drift = 0.0; // relative change of total energy over the run
   // bytes_per_module: per owned module of the busiest process when distributed
 };
 

@@ -11,6 +11,15 @@
 
 namespace ldem {
 
+namespace {
+double ordered_sum(const std::vector<double>& v) {
+  double sum = 0.0; // from zero, row after row, as one process sums them
+  for (double x : v)
+    sum += x;
+  return sum;
+}
+} // namespace
+
 #ifdef LDEM_HAVE_MPI
 
 namespace {
@@ -85,6 +94,28 @@ void exchange_halos(SlabRun& run, std::vector<double> (&buf)[4]) {
       run.unpack(side == 0 ? -1 : +1, buf[side]);
 }
 
+std::vector<double> gather_on_first(const std::vector<double>& mine) {
+  if (!g_active)
+    return mine;
+  const int count = static_cast<int>(mine.size());
+  std::vector<int> counts(static_cast<std::size_t>(process_count())), offsets(counts.size());
+  MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  int total = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    offsets[r] = total;
+    total += counts[r];
+  }
+  std::vector<double> all(process_rank() == 0 ? static_cast<std::size_t>(total) : 0);
+  MPI_Gatherv(mine.data(), count, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE,
+              0, MPI_COMM_WORLD);
+  return all;
+}
+
+void broadcast_from_first(double* values, int count) {
+  if (g_active)
+    MPI_Bcast(values, count, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+}
+
 namespace {
 double reduce(double x, MPI_Op op) {
   double y = x;
@@ -124,6 +155,10 @@ void exchange_halos(SlabRun& run, std::vector<double> (&)[4]) {
   if (run.slab().ranks > 1)
     throw InputError("a slab of several ranks needs a build with MPI");
 }
+std::vector<double> gather_on_first(const std::vector<double>& mine) {
+  return mine;
+}
+void broadcast_from_first(double*, int) {}
 double min_over_processes(double x) {
   return x;
 }
@@ -133,5 +168,15 @@ double max_over_processes(double x) {
 void barrier() {}
 
 #endif
+
+EnergySums gather_energies(const SlabRun& run) {
+  std::vector<double> rows[3];
+  run.append_owned_energy_rows(rows[0], rows[1], rows[2]);
+  double sums[3];
+  for (int q = 0; q < 3; ++q)
+    sums[q] = ordered_sum(gather_on_first(rows[q]));
+  broadcast_from_first(sums, 3);
+  return {sums[0], sums[1], sums[2]};
+}
 
 } // namespace ldem

@@ -27,6 +27,19 @@ bool built_with_mpi();
 // and receives, then the unpacking); `buffers` holds four reusable vectors.
 void exchange_halos(SlabRun& run, std::vector<double> (&buffers)[4]);
 
+// The whole body's elastic, dissipated and kinetic energy of the last report step, from
+// every rank's owned rows summed in the body's row order: the numbers one process gives, bit
+// for bit. Every rank gets them.
+struct EnergySums {
+  double elastic = 0.0, damage = 0.0, kinetic = 0.0;
+};
+EnergySums gather_energies(const SlabRun& run);
+
+// Every rank's `mine`, concatenated in rank order, on rank 0 (empty on the others); and
+// rank 0's values to every rank.
+std::vector<double> gather_on_first(const std::vector<double>& mine);
+void broadcast_from_first(double* values, int count);
+
 double min_over_processes(double x);
 double max_over_processes(double x);
 void barrier();

@@ -91,6 +91,25 @@ bool SlabRun::owns(index_t local) const {
   return !a.centre && a.k == slab_.nz && !slab_.above();
 }
 
+void SlabRun::append_owned_energy_rows(std::vector<double>& elastic, std::vector<double>& damage,
+                                       std::vector<double>& kinetic) const {
+  const auto owned_plane = [&](index_t local_k, bool corner) {
+    const index_t k = local_k + slab_.w0;
+    return (k >= slab_.m0 && k < slab_.m1) || (corner && k == slab_.nz && !slab_.above());
+  };
+  const auto& u = sim_.report_bar_elastic();
+  const auto& d = sim_.report_bar_damage();
+  for (std::size_t r = 0; r < u.size(); ++r)
+    if (owned_plane(sim_.bar_row_plane(r), true)) {
+      elastic.push_back(u[r]);
+      damage.push_back(d[r]);
+    }
+  const auto& kin = sim_.report_node_kinetic();
+  for (std::size_t r = 0; r < kin.size(); ++r)
+    if (owned_plane(sim_.node_row(r).k, !sim_.node_row(r).centre))
+      kinetic.push_back(kin[r]);
+}
+
 index_t SlabRun::send_plane(int dir) const {
   return dir < 0 ? slab_.m0 - slab_.w0 : slab_.m1 - 1 - slab_.w0;
 }

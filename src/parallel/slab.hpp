@@ -54,6 +54,13 @@ public:
   // Whether this rank owns the local node (integrates it and reports it).
   bool owns(index_t local) const;
 
+  // The rows of the last report's energies that this slab owns (its bar planes, its node
+  // planes), appended in the whole body's row order: elastic and dissipated energy per bar
+  // row, kinetic energy per node row. Slab after slab, in rank order, they are the whole
+  // body's rows, so summed in that order they give its energies bit for bit.
+  void append_owned_energy_rows(std::vector<double>& elastic, std::vector<double>& damage,
+                                std::vector<double>& kinetic) const;
+
   // Halo exchange: the doubles to send to the rank below (dir = -1) or above (+1), and the
   // doubles received from it. Both sides agree on the sizes (halo_size).
   std::size_t halo_size(int dir) const;

@@ -107,6 +107,16 @@ public:
   // the step and kept in last_report().
   void step(bool report = false);
   const EnergyReport& last_report() const { return report_; }
+  // The last report's energies row by row, for distributed runs that sum them across
+  // processes in the same order: elastic and dissipated energy per bar row (bar_row_plane:
+  // its block index k) and kinetic energy per node row (node_row: its place), in the order of
+  // the step. The report's elastic, damage and kinetic energies are their sums in that order
+  // (the kinetic energy plus that of imposed-velocity DOF).
+  const std::vector<double>& report_bar_elastic() const { return energy_rows_u_; }
+  const std::vector<double>& report_bar_damage() const { return energy_rows_d_; }
+  const std::vector<double>& report_node_kinetic() const { return row_kinetic_; }
+  index_t bar_row_plane(std::size_t r) const { return bar_rows_[r].k; }
+  const NodeRow& node_row(std::size_t r) const { return node_rows_[r]; }
 
   // Events since the last call, in (step, bar) order.
   std::vector<Event> take_events();
