@@ -32,22 +32,45 @@ struct SlabScenario {
     sim.set_half_step_velocity(node, draw(2, a, 1e-4));
   }
 
-  static Simulation whole() {
-    Simulation sim = make_sim(nx, ny, nz, 1.0, material());
+  // With `loaded`, the body is also held and driven: its bottom face fixed, its top face
+  // pulled up at a velocity that ramps in, a constant force on every node of face x+, and
+  // mass-proportional damping.
+  static Conditions conditions(const Lattice& whole, bool loaded) {
+    Conditions c;
+    if (!loaded)
+      return c;
+    c.fixed.push_back({face(whole, Face::ZMin), kDofAll});
+    c.velocities.push_back(
+        {face(whole, Face::ZMax), kDofZ, {0, 0, 1e-4}, TimeFunction({LinearRamp{1.0, 20.0}})});
+    c.loads.push_back({face(whole, Face::XMax), {2e-5, 0, 0}, TimeFunction{}});
+    return c;
+  }
+  static SolverOptions options(bool loaded) {
+    SolverOptions o;
+    o.damping = loaded ? 0.01 : 0.0;
+    return o;
+  }
+
+  static Simulation whole(bool loaded = false) {
+    const Lattice lat(nx, ny, nz, 1.0);
+    Simulation sim =
+        make_sim(nx, ny, nz, 1.0, material(), conditions(lat, loaded), options(loaded));
     for (index_t n = 0; n < sim.lattice().num_nodes(); ++n)
       start(sim, n, sim.lattice().node_address(n));
     return sim;
   }
 
   // Rank `rank` of `ranks`, with the whole body's time step `dt`, started.
-  static SlabRun slab(int ranks, int rank, double dt) {
+  static SlabRun slab(int ranks, int rank, double dt, bool loaded = false) {
     const Slab s = make_slab(nz, ranks, rank);
+    const Lattice whole(nx, ny, nz, 1.0);
     Lattice local(nx, ny, s.local_nz(), 1.0);
     BarTable table(local, material());
-    SolverOptions given;
+    SolverOptions given = options(loaded);
     given.step.rule = TimeStep::Rule::Given;
     given.step.dt = dt;
-    SlabRun run(s, std::move(local), std::move(table), Conditions{}, given);
+    Conditions c = slab_conditions(s, whole, local, conditions(whole, loaded));
+    SlabRun run(s, std::move(local), std::move(table), std::move(c), given);
     for (index_t n = 0; n < run.sim().lattice().num_nodes(); ++n)
       start(run.sim(), n, run.global_address(n));
     return run;

@@ -28,6 +28,34 @@ Slab make_slab(index_t nz, int ranks, int rank) {
   return s;
 }
 
+Conditions slab_conditions(const Slab& slab, const Lattice& whole, const Lattice& local,
+                           const Conditions& c) {
+  const auto restrict_set = [&](const NodeSet& set) {
+    NodeSet out{set.name, {}};
+    for (index_t g : set.nodes) {
+      const NodeAddress a = whole.node_address(g);
+      const bool owned =
+          (a.k >= slab.m0 && a.k < slab.m1) || (!a.centre && a.k == slab.nz && !slab.above());
+      if (owned)
+        out.nodes.push_back(a.centre ? local.centre(a.i, a.j, a.k - slab.w0)
+                                     : local.corner(a.i, a.j, a.k - slab.w0));
+    }
+    return out;
+  };
+  Conditions out;
+  out.plane_strain_axis = c.plane_strain_axis;
+  for (const FixedDofs& f : c.fixed)
+    if (NodeSet set = restrict_set(f.set); !set.nodes.empty())
+      out.fixed.push_back({std::move(set), f.dofs});
+  for (const ImposedVelocity& v : c.velocities)
+    if (NodeSet set = restrict_set(v.set); !set.nodes.empty())
+      out.velocities.push_back({std::move(set), v.dofs, v.velocity, v.scale});
+  for (const NodalLoad& l : c.loads)
+    if (NodeSet set = restrict_set(l.set); !set.nodes.empty())
+      out.loads.push_back({std::move(set), l.force, l.scale});
+  return out;
+}
+
 namespace {
 
 // The window's ghost nodes (corner and centre planes received from the neighbours, and the

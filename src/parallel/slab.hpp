@@ -34,6 +34,12 @@ struct Slab {
 // Throws InputError when the body has fewer modules along z than there are ranks.
 Slab make_slab(index_t nz, int ranks, int rank);
 
+// The whole body's conditions restricted to the nodes the slab owns, in the numbers of its
+// window's lattice `local` (the order of each set kept); a condition on none of them is left
+// out. Ghost nodes are not included: their owner applies the condition and sends them.
+Conditions slab_conditions(const Slab& slab, const Lattice& whole, const Lattice& local,
+                           const Conditions& conditions);
+
 // The local run of one slab: a Simulation over the window, its ghost nodes held, and the
 // planes it exchanges with its neighbours.
 class SlabRun {
