@@ -91,7 +91,7 @@ struct SlabScenario {
     const Slab& s = run.slab();
     const index_t k = a.k + s.w0;
     global = whole.bar(a.family, a.i, a.j, k);
-    return (k >= s.m0 && k < s.m1) || (k == nz && !s.above());
+    return s.owns_plane(k, true);
   }
 };
 

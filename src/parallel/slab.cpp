@@ -34,9 +34,7 @@ Conditions slab_conditions(const Slab& slab, const Lattice& whole, const Lattice
     NodeSet out{set.name, {}};
     for (index_t g : set.nodes) {
       const NodeAddress a = whole.node_address(g);
-      const bool owned =
-          (a.k >= slab.m0 && a.k < slab.m1) || (!a.centre && a.k == slab.nz && !slab.above());
-      if (owned)
+      if (slab.owns_plane(a.k, !a.centre))
         out.nodes.push_back(a.centre ? local.centre(a.i, a.j, a.k - slab.w0)
                                      : local.corner(a.i, a.j, a.k - slab.w0));
     }
@@ -114,16 +112,13 @@ NodeAddress SlabRun::global_address(index_t local) const {
 
 bool SlabRun::owns(index_t local) const {
   const NodeAddress a = global_address(local);
-  if (a.k >= slab_.m0 && a.k < slab_.m1)
-    return true;
-  return !a.centre && a.k == slab_.nz && !slab_.above();
+  return slab_.owns_plane(a.k, !a.centre);
 }
 
 void SlabRun::append_owned_energy_rows(std::vector<double>& elastic, std::vector<double>& damage,
                                        std::vector<double>& kinetic) const {
   const auto owned_plane = [&](index_t local_k, bool corner) {
-    const index_t k = local_k + slab_.w0;
-    return (k >= slab_.m0 && k < slab_.m1) || (corner && k == slab_.nz && !slab_.above());
+    return slab_.owns_plane(local_k + slab_.w0, corner);
   };
   const auto& u = sim_.report_bar_elastic();
   const auto& d = sim_.report_bar_damage();

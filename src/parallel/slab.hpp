@@ -29,6 +29,11 @@ struct Slab {
   bool below() const { return rank > 0; }
   bool above() const { return rank + 1 < ranks; }
   index_t local_nz() const { return w1 - w0; }
+  // Whether the slab owns plane k of the body: its centre plane or bar plane k (corner = false
+  // for a centre plane; bar planes count as corner planes), or its corner plane k.
+  bool owns_plane(index_t k, bool corner) const {
+    return (k >= m0 && k < m1) || (corner && k == nz && !above());
+  }
 };
 
 // Throws InputError when the body has fewer modules along z than there are ranks.
