@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 namespace ldem::testing {
 namespace {
 
@@ -23,6 +25,49 @@ TEST(Slab, OwnedModulesAndWindows) {
   EXPECT_EQ(make_slab(4, 1, 0).local_nz(), 4u);
   EXPECT_THROW(make_slab(2, 3, 0), InputError); // fewer modules than ranks
   EXPECT_THROW(make_slab(8, 2, 2), InputError); // no such rank
+}
+
+// The spans that carry states between the slabs and the whole body (snapshots, checkpoints,
+// resumes): the owned spans of all slabs cover every node and bar of the body exactly once, a
+// window's spans cover its lattice exactly once, and each span maps a window's number to the
+// body's number of the same node or bar.
+TEST(Slab, SpansCoverTheBodyOnceAndMapWindowToBody) {
+  const Lattice whole(5, 4, 7, 0.01);
+  for (int ranks = 1; ranks <= 4; ++ranks) {
+    std::vector<int> node_owners(whole.num_nodes(), 0), bar_owners(whole.num_bars(), 0);
+    for (int r = 0; r < ranks; ++r) {
+      const Slab slab = make_slab(whole.nz(), ranks, r);
+      const Lattice local = window_lattice(slab, whole);
+      for (const Span& s : slab_node_spans(slab, whole, true))
+        for (index_t q = 0; q < s.count; ++q)
+          ++node_owners[s.global_first + q];
+      for (const Span& s : slab_bar_spans(slab, whole, true))
+        for (index_t q = 0; q < s.count; ++q)
+          ++bar_owners[s.global_first + q];
+      std::vector<int> local_nodes(local.num_nodes(), 0), local_bars(local.num_bars(), 0);
+      for (const Span& s : slab_node_spans(slab, whole, false))
+        for (index_t q = 0; q < s.count; ++q) {
+          ++local_nodes[s.local_first + q];
+          NodeAddress a = local.node_address(s.local_first + q);
+          a.k += slab.w0;
+          ASSERT_EQ(s.global_first + q, a.centre ? whole.centre(a.i, a.j, a.k)
+                                                 : whole.corner(a.i, a.j, a.k));
+        }
+      for (const Span& s : slab_bar_spans(slab, whole, false))
+        for (index_t q = 0; q < s.count; ++q) {
+          ++local_bars[s.local_first + q];
+          ASSERT_EQ(s.global_first + q, global_bar(slab, local, whole, s.local_first + q));
+        }
+      EXPECT_EQ(std::count(local_nodes.begin(), local_nodes.end(), 1), local.num_nodes())
+          << ranks << " ranks, rank " << r;
+      EXPECT_EQ(std::count(local_bars.begin(), local_bars.end(), 1), local.num_bars())
+          << ranks << " ranks, rank " << r;
+    }
+    EXPECT_EQ(std::count(node_owners.begin(), node_owners.end(), 1), whole.num_nodes())
+        << ranks << " ranks";
+    EXPECT_EQ(std::count(bar_owners.begin(), bar_owners.end(), 1), whole.num_bars())
+        << ranks << " ranks";
+  }
 }
 
 void expect_slabs_match_whole_body(int ranks, bool loaded) {

@@ -1,5 +1,8 @@
 #include "app/case_run.hpp"
 
+#include "app/run_body.hpp"
+#include "parallel/comm.hpp"
+
 #include "analysis/crack.hpp"
 #include "analysis/fatigue.hpp"
 #include "io/output.hpp"
@@ -84,7 +87,8 @@ std::string dofs_text(DofMask m) {
 
 } // namespace
 
-BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&)>& adjust) {
+BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&)>& adjust,
+                     bool with_simulation) {
   BuiltCase c;
   c.spec = read_case(path);
   if (adjust)
@@ -142,17 +146,21 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       validate_field(*s.fields.rho, lat, "material.rho");
       fields.rho = evaluate_field_modules(*s.fields.rho, lat);
     }
-    BarTable table(lat, s.material, fields);
-    c.warnings = table.warnings();
-    SolverOptions opt;
-    opt.step = s.step;
-    opt.damping = s.damping;
-    c.sim = std::make_unique<Simulation>(std::move(lat), std::move(table), std::move(cond), opt,
-                                         c.precracked);
+    c.lattice = lat;
+    c.conditions = cond;
+    c.options.step = s.step;
+    c.options.damping = s.damping;
+    if (with_simulation) {
+      BarTable table(lat, s.material, fields);
+      c.warnings = table.warnings();
+      c.sim = std::make_unique<Simulation>(std::move(lat), std::move(table), std::move(cond),
+                                           c.options, c.precracked);
+    }
+    c.fields = std::move(fields);
   } catch (const InputError& e) {
     throw InputError(fmt::format("{}: {}", path, e.what()));
   }
-  if (!(s.end_time >= c.sim->dt()))
+  if (c.sim && !(s.end_time >= c.sim->dt()))
     throw InputError(fmt::format("{}: time.end: expected at least one time step ({:.4g} s), got "
                                  "{:g} s",
                                  path, c.sim->dt(), s.end_time));
@@ -662,27 +670,31 @@ RunState read_checkpoint(const std::string& path, std::string& payload, std::siz
   return st;
 }
 
-// The time-step loop of a run, from step st.next, writing into `dir`. `fresh`: the output
-// files start with their headers; otherwise they continue where the checkpoint left them.
-int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, bool plots,
-             std::uint64_t checkpoint_every, double checkpoint_seconds) {
+// The time-step loop of a run, from step st.next, writing into `dir` (the first process
+// writes; in a distributed run every process steps its slab and takes part in each exchange).
+// `fresh`: the output files start with their headers; otherwise they continue where the
+// checkpoint left them.
+int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState st, bool fresh,
+             bool plots, std::uint64_t checkpoint_every, double checkpoint_seconds) {
   const CaseSpec& s = c.spec;
-  Simulation& sim = *c.sim;
-  const Lattice& lat = sim.lattice();
+  const Lattice& lat = body.lattice();
+  const bool writes = body.writes();
   const std::string dir = out_dir + "/";
-  auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / sim.dt() - 1e-9));
+  auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / body.dt() - 1e-9));
   const std::uint64_t every =
       s.output.energy_every ? s.output.energy_every : std::max<std::uint64_t>(1, steps / 500);
   const std::uint64_t vtu_every =
       s.output.vtu_every ? s.output.vtu_every : std::max<std::uint64_t>(1, steps / 20);
 
-  auto open = [&](const char* name, int i) {
+  auto open = [&](const char* name, int i) -> std::unique_ptr<OutputFile> {
+    if (!writes)
+      return nullptr;
     return fresh ? std::make_unique<OutputFile>(dir + name)
                  : std::make_unique<OutputFile>(dir + name, st.lengths[i]);
   };
   const auto energy = open("energy.csv", 0), events = open("events.csv", 1),
              probes = open("probes.csv", 2);
-  if (fresh) {
+  if (fresh && writes) {
     energy->write("time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,"
                   "balance_error\n");
     events->write("bar,event,time,x,y,z\n");
@@ -693,40 +705,29 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
   }
   auto flush_events = [&] {
     std::string rows;
-    for (const Event& e : sim.take_events()) {
+    for (const Event& e : body.take_events()) {
       const Vec3 m = lat.bar_centre(e.bar);
       (e.state == BarState::Softening ? st.n_soft : st.n_broken)++;
       rows += fmt::format("{},{},{:.9g},{:.9g},{:.9g},{:.9g}\n", e.bar,
                           e.state == BarState::Softening ? "softening" : "broken",
-                          static_cast<double>(e.step) * sim.dt(), m.x, m.y, m.z);
+                          static_cast<double>(e.step) * body.dt(), m.x, m.y, m.z);
     }
-    events->write(rows);
+    if (writes)
+      events->write(rows);
   };
   auto probe_row = [&]() {
-    std::string row = fmt::format("{:.9g}", sim.time());
-    for (std::size_t i = 0; i < s.probes.size(); ++i) {
-      const ProbeSpec& p = s.probes[i];
-      double v = 0.0;
-      if (p.kind == ProbeSpec::Kind::BarForce) {
-        v = sim.bar_force(c.probe_bars[i]);
-      } else if (p.kind == ProbeSpec::Kind::Reaction) {
-        // The support force that holds the set: minus the bar forces and loads on its nodes.
-        for (index_t n : set_named(c.sets, p.set).nodes) {
-          const Vec3 f = sim.node_force(n), l = sim.nodal_load(n);
-          v -= p.component == 0 ? f.x + l.x : p.component == 1 ? f.y + l.y : f.z + l.z;
-        }
-      } else {
-        for (const LoadSpec& l : s.loads)
-          if (l.name == p.load)
-            v = l.scale(sim.time()) *
-                std::sqrt(l.force.x * l.force.x + l.force.y * l.force.y + l.force.z * l.force.z) *
-                static_cast<double>(set_named(c.sets, l.set).nodes.size());
-      }
+    const std::vector<double> values = body.probe_values();
+    if (!writes)
+      return;
+    std::string row = fmt::format("{:.9g}", body.time());
+    for (double v : values)
       row += fmt::format(",{:.9g}", v);
-    }
     probes->write(row + "\n");
   };
   auto checkpoint = [&](std::uint64_t next) {
+    const Simulation* whole = body.whole(true);
+    if (!writes)
+      return;
     energy->flush();
     events->flush();
     probes->flush();
@@ -734,31 +735,41 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
     st.lengths[0] = energy->size();
     st.lengths[1] = events->size();
     st.lengths[2] = probes->size();
-    write_checkpoint(dir, st, sim);
+    write_checkpoint(dir, st, *whole);
   };
 
   // The snapshot writer prepares what does not change during the run (connectivity, fields)
   // here, with the rest of the set-up, so that the loop's timing holds only per-step work.
   std::unique_ptr<LatticeVtuWriter> vtu_writer;
-  if (s.output.vtu)
-    vtu_writer = std::make_unique<LatticeVtuWriter>(sim);
-  Progress progress(steps);
+  if (s.output.vtu && writes)
+    vtu_writer = std::make_unique<LatticeVtuWriter>(*c.sim);
+  std::unique_ptr<Progress> progress;
+  if (writes)
+    progress = std::make_unique<Progress>(steps);
   const auto t0 = std::chrono::steady_clock::now();
   auto last_checkpoint = t0;
   const std::uint64_t first = st.next;
   std::uint64_t n = st.next;
   std::string blow_up, stopped_by;
+  bool blew_up = false;
+  int signal = 0;
+  // One process looks at signals and the clock every step; processes of a distributed run
+  // agree on them every 10 steps (one reduction each), so that all stop at the same step.
+  const std::uint64_t agree_every = body.distributed() ? 10 : 1;
   for (; n <= steps; ++n) {
     // An interruption stops between steps: the checkpoint holds the state before step n and
     // the outputs hold every row of the steps before it, so a resumed run writes exactly
     // what the uninterrupted one would have.
-    if (g_interrupted)
+    const bool look = n % agree_every == 0;
+    if (look && (signal = body.max_over_processes(g_interrupted)) != 0)
       break;
-    if (n > first &&
-        ((checkpoint_every && n % checkpoint_every == 0) ||
-         (checkpoint_seconds > 0 &&
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - last_checkpoint)
-                  .count() > checkpoint_seconds))) {
+    bool save = n > first && checkpoint_every && n % checkpoint_every == 0;
+    if (look && n > first && checkpoint_seconds > 0) // the first process's clock decides
+      save |= body.max_over_processes(
+                  writes && std::chrono::duration<double>(std::chrono::steady_clock::now() -
+                                                          last_checkpoint)
+                                    .count() > checkpoint_seconds) != 0;
+    if (save) {
       checkpoint(n);
       last_checkpoint = std::chrono::steady_clock::now();
     }
@@ -766,56 +777,71 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
     // physical scale): the run stops with the first bad node, keeping its outputs up to here
     // and its last checkpoint.
     if (n % 10 == 0) {
-      const index_t bad = sim.first_bad_node();
+      const double limit =
+          1e3 * lat.L() * static_cast<double>(std::max({lat.nx(), lat.ny(), lat.nz()}));
+      const index_t bad = body.first_node_beyond(limit);
       if (bad < lat.num_nodes()) {
-        const Vec3 x = lat.position(bad), u = sim.displacement(bad);
-        blow_up = fmt::format("numerical blow-up detected at step {} (t = {:.6g} s): node {} at "
-                              "({:g}, {:g}, {:g}) m has displacement ({:g}, {:g}, {:g}) m. "
-                              "Check the case's loads, velocities and material values; the "
-                              "outputs are complete up to the last report before this step",
-                              n, sim.time(), bad, x.x, x.y, x.z, u.x, u.y, u.z);
+        blew_up = true;
+        const Simulation* whole = body.whole(false);
+        if (writes) {
+          const Vec3 x = lat.position(bad), u = whole->displacement(bad);
+          blow_up = fmt::format("numerical blow-up detected at step {} (t = {:.6g} s): node {} "
+                                "at ({:g}, {:g}, {:g}) m has displacement ({:g}, {:g}, {:g}) m. "
+                                "Check the case's loads, velocities and material values; the "
+                                "outputs are complete up to the last report before this step",
+                                n, body.time(), bad, x.x, x.y, x.z, u.x, u.y, u.z);
+        }
         break;
       }
       if (s.stop_displacement > 0) {
-        const index_t far = sim.first_node_beyond(s.stop_displacement);
+        const index_t far = body.first_node_beyond(s.stop_displacement);
         if (far < lat.num_nodes()) {
           const Vec3 x = lat.position(far);
           stopped_by = fmt::format("node {} at ({:g}, {:g}, {:g}) m moved beyond "
                                    "time.stop_displacement = {:g} m at t = {:.6g} s",
-                                   far, x.x, x.y, x.z, s.stop_displacement, sim.time());
+                                   far, x.x, x.y, x.z, s.stop_displacement, body.time());
           steps = n; // this step is the last: it is reported and written as the run's end
         }
       }
     }
     const bool report = n % every == 0 || n == steps;
     if (s.output.vtu && (n % vtu_every == 0 || n == steps)) {
-      const std::string name = fmt::format("lattice_{:06d}.vtu", st.snapshots.size());
-      vtu_writer->write(sim, dir + name);
-      st.snapshots.emplace_back(sim.time(), name);
-      write_file(dir + "lattice.pvd", lattice_pvd(st.snapshots));
+      const Simulation* whole = body.whole(false);
+      if (writes) {
+        const std::string name = fmt::format("lattice_{:06d}.vtu", st.snapshots.size());
+        vtu_writer->write(*whole, dir + name);
+        st.snapshots.emplace_back(body.time(), name);
+        write_file(dir + "lattice.pvd", lattice_pvd(st.snapshots));
+      }
     }
     if (report)
       probe_row();
-    sim.step(report);
+    body.step(report);
     if (report) {
-      const EnergyReport& r = sim.last_report();
-      energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g}\n", r.time,
-                                r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
-                                r.damping_dissipated, r.balance_error));
-      if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
-          n > 0)
-        st.max_balance = std::max(st.max_balance, r.balance_error);
       flush_events();
-      energy->flush();
-      events->flush();
-      probes->flush();
-      progress.update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error, n == steps);
+      if (writes) {
+        const EnergyReport& r = body.last_report();
+        energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g}\n", r.time,
+                                  r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
+                                  r.damping_dissipated, r.balance_error));
+        if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
+            n > 0)
+          st.max_balance = std::max(st.max_balance, r.balance_error);
+        energy->flush();
+        events->flush();
+        probes->flush();
+        progress->update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error,
+                         n == steps);
+      }
     }
   }
-  const int signal = g_interrupted;
   if (signal)
     checkpoint(n);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const Simulation* whole = body.whole(false); // the final state, for the summary
+  if (!writes) // the first process reports; the others end with its exit code
+    return blew_up ? 3 : signal == SIGTERM ? 143 : signal ? 130 : 0;
+  const Simulation& sim = *whole;
   energy->commit();
   events->commit();
   probes->commit();
@@ -826,15 +852,15 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
       fmt::format("{{\n  \"case\": \"{}\",\n  \"title\": \"{}\",\n  \"nodes\": {},\n"
                   "  \"bars\": {},\n  \"steps\": {},\n  \"dt\": {:.9g},\n"
                   "  \"dt_stable\": {:.9g},\n  \"end_time\": {:.9g},\n  \"wall_s\": {:.4f},\n"
-                  "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n"
+                  "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n  \"processes\": {},\n"
                   "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
                   "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
                   "  \"interrupted\": {},\n  \"stopped_by\": {},\n  \"analysis\": {{}}\n}}\n",
                   st.case_path, s.title, lat.num_nodes(), lat.num_bars(), n, sim.dt(),
                   sim.stable_step().dt, sim.time(), wall,
                   static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
-                  omp_get_max_threads(), st.max_balance, softened, broken, c.precracked.size(),
-                  signal ? "true" : "false",
+                  omp_get_max_threads(), process_count(), st.max_balance, softened, broken,
+                  c.precracked.size(), signal ? "true" : "false",
                   stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\""));
   if (!blow_up.empty()) {
     fmt::print(stderr, "ldem: error: {}\n", blow_up);
@@ -843,8 +869,9 @@ int run_loop(BuiltCase& c, const std::string& out_dir, RunState st, bool fresh, 
   if (signal) {
     fmt::print(stderr,
                "ldem: stopped by {} at t = {:.4g} s (step {}); outputs complete up to then and "
-               "a checkpoint in {}/checkpoint. Continue with: ldem resume {}\n",
-               signal == SIGTERM ? "SIGTERM" : "SIGINT", sim.time(), n, out_dir, out_dir, out_dir);
+               "a checkpoint in {}/checkpoint. Continue with: ldem resume {}{}\n",
+               signal == SIGTERM ? "SIGTERM" : "SIGINT", sim.time(), n, out_dir, out_dir,
+               body.distributed() ? " (or under mpirun, with any number of processes)" : "");
     return signal == SIGTERM ? 143 : 130;
   }
   if (!stopped_by.empty())
@@ -869,48 +896,111 @@ void catch_stop_signals() {
   std::signal(SIGTERM, on_signal);
 }
 
+namespace {
+
+// Runs `setup` on every process and agrees on its outcome: when some process threw
+// InputError, the lowest such process rethrows it (its message is printed once) and the others
+// return false; true when all succeeded.
+bool agreed(const std::function<void()>& setup) {
+  std::string error;
+  try {
+    setup();
+  } catch (const InputError& e) {
+    error = e.what();
+  }
+  const int rank = process_rank();
+  const double first_failed = min_over_processes(error.empty() ? 1e9 : rank);
+  if (first_failed >= 1e9)
+    return true;
+  if (static_cast<int>(first_failed) == rank)
+    throw InputError(error);
+  return false;
+}
+
+// The whole body's material fields per bar (every bar up to 2 million, else a regular
+// sample), for fields.png and for the user's own statistics.
+void write_fields(const Simulation& sim, const std::string& dir) {
+  const Lattice& lat = sim.lattice();
+  const index_t stride = std::max<index_t>(1, lat.num_bars() / 2000000 + 1);
+  OutputFile fields(dir + "fields.csv");
+  fields.write("bar,x,y,z,E,Gf,e_p,e_r\n");
+  std::string rows;
+  for (index_t b = 0; b < lat.num_bars(); b += stride) {
+    const BarTable::Properties p = sim.table().properties(lat, b);
+    const Vec3 mid = lat.bar_centre(b);
+    rows += fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", b, mid.x, mid.y,
+                        mid.z, p.E, p.Gf, p.e_p, p.e_r);
+    if (rows.size() > (1u << 20)) {
+      fields.write(rows);
+      rows.clear();
+    }
+  }
+  fields.write(rows);
+  fields.commit();
+}
+
+// The body of a run: the case's Simulation, or with several processes a slab on each (the
+// processes agree on whether it could be built).
+std::unique_ptr<RunBody> make_body(BuiltCase& c) {
+  if (process_count() == 1) {
+    c.fields = {}; // only slabs need the per-bar fields again
+    return std::make_unique<RunBody>(c);
+  }
+  std::unique_ptr<RunBody> body;
+  if (!agreed([&] { body = std::make_unique<RunBody>(c, process_count(), process_rank()); }))
+    return nullptr;
+  c.fields = {};
+  return body;
+}
+
+} // namespace
+
 int run_command(const std::string& path, const RunOptions& o) {
   catch_stop_signals();
   if (o.threads > 0)
     omp_set_num_threads(o.threads);
-  BuiltCase c = build_case(path, o.adjust);
-  prepare_output(o.out_dir, o.force);
-  for (const std::string& w : c.warnings)
-    fmt::print(stderr, "ldem: warning: {}\n", w);
-  const Simulation& sim = *c.sim;
-  const Lattice& lat = sim.lattice();
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(o.out_dir)) // --force: old snapshots go
-    if (e.path().extension() == ".vtu" && e.path().filename().string().rfind("lattice_", 0) == 0)
-      fs::remove(e.path());
-  fs::remove_all(o.out_dir + "/checkpoint", ec);
+  const bool writes = process_rank() == 0;
+  BuiltCase c;
+  // The first process builds the whole body (its time step, the outputs' copy) and prepares
+  // the folder; the others only what their slabs need.
+  if (!agreed([&] {
+        c = build_case(path, o.adjust, writes);
+        if (process_count() > 1) // a body too thin for the slabs is refused before any output
+          try {
+            make_slab(c.lattice->nz(), process_count(), process_rank());
+          } catch (const InputError& e) {
+            throw InputError(fmt::format("{}: {}", path, e.what()));
+          }
+        if (writes)
+          prepare_output(o.out_dir, o.force);
+      }))
+    return 2;
+  const std::unique_ptr<RunBody> body = make_body(c);
+  if (!body)
+    return 2;
   const std::string dir = o.out_dir + "/";
-  write_file(dir + "case.resolved.toml", resolved_case_toml(c));
-  if (sim.table().per_bar()) {
-    // The material fields per bar (every bar up to 2 million, else a regular sample), for
-    // fields.png and for the user's own statistics.
-    const index_t stride = std::max<index_t>(1, lat.num_bars() / 2000000 + 1);
-    OutputFile fields(dir + "fields.csv");
-    fields.write("bar,x,y,z,E,Gf,e_p,e_r\n");
-    std::string rows;
-    for (index_t b = 0; b < lat.num_bars(); b += stride) {
-      const BarTable::Properties p = sim.table().properties(lat, b);
-      const Vec3 mid = lat.bar_centre(b);
-      rows += fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", b, mid.x, mid.y,
-                          mid.z, p.E, p.Gf, p.e_p, p.e_r);
-      if (rows.size() > (1u << 20)) {
-        fields.write(rows);
-        rows.clear();
-      }
-    }
-    fields.write(rows);
-    fields.commit();
-  }
   RunState st;
   st.case_path = fs::absolute(path).string();
-  const std::string text = read_all(path);
-  st.case_hash = fnv1a(text.data(), text.size());
-  return run_loop(c, o.out_dir, st, true, o.plots,
+  if (writes) {
+    for (const std::string& w : c.warnings)
+      fmt::print(stderr, "ldem: warning: {}\n", w);
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(o.out_dir)) // --force: old snapshots go
+      if (e.path().extension() == ".vtu" &&
+          e.path().filename().string().rfind("lattice_", 0) == 0)
+        fs::remove(e.path());
+    fs::remove_all(o.out_dir + "/checkpoint", ec);
+    write_file(dir + "case.resolved.toml", resolved_case_toml(c));
+    if (c.sim->table().per_bar())
+      write_fields(*c.sim, dir);
+    const std::string text = read_all(path);
+    st.case_hash = fnv1a(text.data(), text.size());
+    if (process_count() > 1)
+      fmt::print(stderr, "ldem: {} processes, slabs of {} to {} modules along z\n",
+                 process_count(), c.lattice->nz() / process_count(),
+                 (c.lattice->nz() + process_count() - 1) / process_count());
+  }
+  return run_loop(c, *body, o.out_dir, st, true, o.plots,
                   o.checkpoint_every >= 0 ? static_cast<std::uint64_t>(o.checkpoint_every)
                                           : c.spec.output.checkpoint_every,
                   o.checkpoint_seconds >= 0 ? o.checkpoint_seconds
@@ -921,26 +1011,49 @@ int resume_command(const std::string& out_dir, int threads, bool plots) {
   catch_stop_signals();
   if (threads > 0)
     omp_set_num_threads(threads);
+  const bool writes = process_rank() == 0;
   std::string payload;
   std::size_t pos = 0;
-  RunState st = read_checkpoint(out_dir + "/checkpoint/state.ckpt", payload, pos);
-  std::string text;
-  try {
-    text = read_all(st.case_path);
-  } catch (const InputError&) {
-    throw InputError(fmt::format("{}: the case file of this run is gone; a resume needs it "
-                                 "unchanged",
-                                 st.case_path));
-  }
-  if (fnv1a(text.data(), text.size()) != st.case_hash)
-    throw InputError(fmt::format("{}: the case file changed since the checkpoint in {}; a "
-                                 "resume needs it unchanged (start a new run instead)",
-                                 st.case_path, out_dir));
-  BuiltCase c = build_case(st.case_path);
-  c.sim->load_state(payload, pos);
-  fmt::print(stderr, "ldem: resuming {} at step {} (t = {:.4g} s)\n", st.case_path, st.next,
-             c.sim->time());
-  return run_loop(c, out_dir, st, false, plots, c.spec.output.checkpoint_every,
+  RunState st;
+  BuiltCase c;
+  // The first process reads the checkpoint (written by any number of processes: it holds the
+  // whole body) and loads it into the whole body; the slabs then take their part of it.
+  if (!agreed([&] {
+        if (!writes)
+          return;
+        st = read_checkpoint(out_dir + "/checkpoint/state.ckpt", payload, pos);
+        std::string text;
+        try {
+          text = read_all(st.case_path);
+        } catch (const InputError&) {
+          throw InputError(fmt::format("{}: the case file of this run is gone; a resume needs "
+                                       "it unchanged",
+                                       st.case_path));
+        }
+        if (fnv1a(text.data(), text.size()) != st.case_hash)
+          throw InputError(fmt::format("{}: the case file changed since the checkpoint in {}; "
+                                       "a resume needs it unchanged (start a new run instead)",
+                                       st.case_path, out_dir));
+        c = build_case(st.case_path);
+        c.sim->load_state(payload, pos);
+      }))
+    return 2;
+  std::string case_path = st.case_path;
+  broadcast_from_first(case_path);
+  if (!agreed([&] {
+        if (!writes)
+          c = build_case(case_path, nullptr, false);
+      }))
+    return 2;
+  const std::unique_ptr<RunBody> body = make_body(c);
+  if (!body)
+    return 2;
+  body->spread_whole_state();
+  st.next = body->step_count(); // the checkpoint's next step, on every process
+  if (writes)
+    fmt::print(stderr, "ldem: resuming {} at step {} (t = {:.4g} s)\n", st.case_path, st.next,
+               body->time());
+  return run_loop(c, *body, out_dir, st, false, plots, c.spec.output.checkpoint_every,
                   c.spec.output.checkpoint_seconds);
 }
 

@@ -7,6 +7,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,12 +22,21 @@ struct BuiltCase {
   std::vector<CutResult> cuts;
   std::vector<index_t> probe_bars; // per probe: the bar of a bar_force probe
   std::vector<std::string> warnings;
+  // What the simulation was built from, for runs that build it again in slabs: the body's
+  // lattice, its conditions, the per-bar fields (empty when uniform) and the solver options.
+  std::optional<Lattice> lattice;
+  Conditions conditions;
+  BarFields fields;
+  SolverOptions options;
 };
 
 // Builds everything a run needs; bad input throws InputError naming the case file. `adjust`,
-// if given, changes the case after it is read (ensemble perturbations).
+// if given, changes the case after it is read (ensemble perturbations). Without
+// `with_simulation`, sim stays empty (the processes of a distributed run other than the first
+// build only their slab).
 BuiltCase build_case(const std::string& path,
-                     const std::function<void(CaseSpec&)>& adjust = nullptr);
+                     const std::function<void(CaseSpec&)>& adjust = nullptr,
+                     bool with_simulation = true);
 
 struct RunOptions {
   std::string out_dir;

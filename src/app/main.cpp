@@ -143,14 +143,15 @@ int main(int argc, char** argv) {
     std::cout << app.help();
     return 0;
   }
-  // Several processes (mpirun -np P): only `ldem bench` is distributed so far; anything else
-  // would run P copies into the same folder.
-  if (ldem::process_count() > 1 && !cmd_bench->parsed()) {
+  // Several processes (mpirun -np P): `ldem run`, `ldem resume` and `ldem bench` are
+  // distributed; anything else would do the same work P times.
+  if (ldem::process_count() > 1 && !cmd_bench->parsed() && !cmd_run->parsed() &&
+      !cmd_resume->parsed()) {
     if (ldem::process_rank() == 0)
       fmt::print(stderr,
-                 "ldem: error: `ldem {}` runs in one process ({} were started); with "
-                 "MPI only `ldem bench` is distributed so far. Start it without mpirun "
-                 "and give it the cores with --threads\n",
+                 "ldem: error: `ldem {}` runs in one process ({} were started); with MPI, "
+                 "`ldem run`, `ldem resume` and `ldem bench` are distributed. Start it without "
+                 "mpirun and give it the cores with --threads\n",
                  app.get_subcommands().front()->get_name(), ldem::process_count());
     return 2;
   }

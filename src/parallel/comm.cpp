@@ -116,6 +116,38 @@ void broadcast_from_first(double* values, int count) {
     MPI_Bcast(values, count, MPI_DOUBLE, 0, MPI_COMM_WORLD);
 }
 
+std::vector<double> scatter_from_first(const std::vector<std::vector<double>>& parts) {
+  if (!g_active)
+    return parts.empty() ? std::vector<double>{} : parts[0];
+  const bool first = process_rank() == 0;
+  std::vector<int> counts(static_cast<std::size_t>(process_count()), 0), offsets(counts.size(), 0);
+  std::vector<double> all;
+  if (first) {
+    if (parts.size() != counts.size())
+      throw InputError("scatter: one part per process expected");
+    for (std::size_t r = 0; r < parts.size(); ++r) {
+      counts[r] = static_cast<int>(parts[r].size());
+      offsets[r] = static_cast<int>(all.size());
+      all.insert(all.end(), parts[r].begin(), parts[r].end());
+    }
+  }
+  int count = 0;
+  MPI_Scatter(counts.data(), 1, MPI_INT, &count, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  std::vector<double> mine(static_cast<std::size_t>(count));
+  MPI_Scatterv(all.data(), counts.data(), offsets.data(), MPI_DOUBLE, mine.data(), count,
+               MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  return mine;
+}
+
+void broadcast_from_first(std::string& bytes) {
+  if (!g_active)
+    return;
+  auto size = static_cast<long long>(bytes.size());
+  MPI_Bcast(&size, 1, MPI_LONG_LONG, 0, MPI_COMM_WORLD);
+  bytes.resize(static_cast<std::size_t>(size));
+  MPI_Bcast(bytes.data(), static_cast<int>(size), MPI_CHAR, 0, MPI_COMM_WORLD);
+}
+
 namespace {
 double reduce(double x, MPI_Op op) {
   double y = x;
@@ -159,6 +191,10 @@ std::vector<double> gather_on_first(const std::vector<double>& mine) {
   return mine;
 }
 void broadcast_from_first(double*, int) {}
+std::vector<double> scatter_from_first(const std::vector<std::vector<double>>& parts) {
+  return parts.empty() ? std::vector<double>{} : parts[0];
+}
+void broadcast_from_first(std::string&) {}
 double min_over_processes(double x) {
   return x;
 }

@@ -5,6 +5,7 @@
 
 #include "parallel/slab.hpp"
 
+#include <string>
 #include <vector>
 
 namespace ldem {
@@ -39,6 +40,11 @@ EnergySums gather_energies(const SlabRun& run);
 // rank 0's values to every rank.
 std::vector<double> gather_on_first(const std::vector<double>& mine);
 void broadcast_from_first(double* values, int count);
+
+// Rank 0's parts[p] to rank p (parts is read on rank 0 only); returns this rank's part.
+std::vector<double> scatter_from_first(const std::vector<std::vector<double>>& parts);
+// Rank 0's bytes to every rank.
+void broadcast_from_first(std::string& bytes);
 
 double min_over_processes(double x);
 double max_over_processes(double x);

@@ -10,9 +10,13 @@ Slab make_slab(index_t nz, int ranks, int rank) {
   if (ranks < 1 || rank < 0 || rank >= ranks)
     throw InputError(fmt::format("rank {} of {} ranks: no such rank", rank, ranks));
   if (nz < static_cast<index_t>(ranks))
-    throw InputError(fmt::format("lattice.modules: {} modules along z cannot be shared by {} "
-                                 "processes (each needs at least one module along z)",
-                                 nz, ranks));
+    throw InputError(fmt::format("lattice.modules: {} module{} along z cannot be shared by {} "
+                                 "processes: a distributed run splits the body into slabs "
+                                 "along z, at least one module each. {}",
+                                 nz, nz == 1 ? "" : "s", ranks,
+                                 nz == 1 ? std::string("Run it in one process (--threads gives "
+                                                       "it the cores)")
+                                         : fmt::format("Start at most {} processes", nz)));
   Slab s;
   s.rank = rank;
   s.ranks = ranks;
@@ -26,6 +30,42 @@ Slab make_slab(index_t nz, int ranks, int rank) {
   s.w0 = s.below() ? s.m0 - 1 : 0;
   s.w1 = s.above() ? s.m1 + 1 : nz;
   return s;
+}
+
+Lattice window_lattice(const Slab& slab, const Lattice& whole) {
+  return Lattice(whole.nx(), whole.ny(), slab.local_nz(), whole.L());
+}
+
+std::vector<Span> slab_node_spans(const Slab& slab, const Lattice& whole, bool owned) {
+  const Lattice local = window_lattice(slab, whole);
+  // Corner planes [k0, k1) and centre planes [k0, c1) of the body.
+  const index_t k0 = owned ? slab.m0 : slab.w0;
+  const index_t k1 = owned ? (slab.above() ? slab.m1 : slab.nz + 1) : slab.w1 + 1;
+  const index_t c1 = owned ? slab.m1 : slab.w1;
+  const index_t corners = (whole.nx() + 1) * (whole.ny() + 1), centres = whole.nx() * whole.ny();
+  return {{local.corner(0, 0, k0 - slab.w0), whole.corner(0, 0, k0), corners * (k1 - k0)},
+          {local.centre(0, 0, k0 - slab.w0), whole.centre(0, 0, k0), centres * (c1 - k0)}};
+}
+
+std::vector<Span> slab_bar_spans(const Slab& slab, const Lattice& whole, bool owned) {
+  const Lattice local = window_lattice(slab, whole);
+  std::vector<Span> spans;
+  for (int f = 0; f < kFamilies; ++f) {
+    const FamilyInfo& fw = whole.family(f);
+    const FamilyInfo& fl = local.family(f);
+    // Bar planes k of the family: the window's, or the owned ones (owns_plane(k, true)).
+    const index_t k0 = owned ? slab.m0 : slab.w0;
+    const index_t k1 = owned ? (slab.above() ? slab.m1 : fw.nk) : slab.w0 + fl.nk;
+    const auto family = static_cast<Family>(f);
+    spans.push_back({local.bar(family, 0, 0, k0 - slab.w0), whole.bar(family, 0, 0, k0),
+                     fw.ni * fw.nj * (k1 - k0)});
+  }
+  return spans;
+}
+
+index_t global_bar(const Slab& slab, const Lattice& local, const Lattice& whole, index_t bar) {
+  const BarAddress a = local.bar_address(bar);
+  return whole.bar(a.family, a.i, a.j, a.k + slab.w0);
 }
 
 Conditions slab_conditions(const Slab& slab, const Lattice& whole, const Lattice& local,
@@ -82,21 +122,22 @@ Conditions with_ghosts(const Slab& slab, const Lattice& local, Conditions c) {
 }
 
 Simulation local_simulation(const Slab& slab, Lattice local, BarTable table, Conditions c,
-                            SolverOptions options) {
+                            SolverOptions options, std::vector<index_t> precracked) {
   if (local.nz() != slab.local_nz())
     throw InputError(fmt::format("slab of rank {}: local lattice of {} modules along z, the "
                                  "window has {}",
                                  slab.rank, local.nz(), slab.local_nz()));
   Conditions all = with_ghosts(slab, local, std::move(c));
-  return Simulation(std::move(local), std::move(table), std::move(all), options);
+  return Simulation(std::move(local), std::move(table), std::move(all), options,
+                    std::move(precracked));
 }
 
 } // namespace
 
 SlabRun::SlabRun(const Slab& slab, Lattice local, BarTable table, Conditions conditions,
-                 SolverOptions options)
+                 SolverOptions options, std::vector<index_t> precracked)
     : slab_(slab), sim_(local_simulation(slab, std::move(local), std::move(table),
-                                         std::move(conditions), options)) {}
+                                         std::move(conditions), options, std::move(precracked))) {}
 
 index_t SlabRun::local_node(const NodeAddress& g) const {
   const Lattice& lat = sim_.lattice();

@@ -39,6 +39,21 @@ struct Slab {
 // Throws InputError when the body has fewer modules along z than there are ranks.
 Slab make_slab(index_t nz, int ranks, int rank);
 
+// A run of consecutive node or bar numbers of the slab's window lattice and the same run in
+// the body's lattice.
+struct Span {
+  index_t local_first, global_first, count;
+};
+// The nodes of the window (corner planes, then centre planes), or with `owned` those the
+// slab owns; and the window's bars (family by family, a span of k-planes each), or those it
+// owns. Owned spans of the slabs of all ranks cover the body once.
+std::vector<Span> slab_node_spans(const Slab& slab, const Lattice& whole, bool owned);
+std::vector<Span> slab_bar_spans(const Slab& slab, const Lattice& whole, bool owned);
+// The window's lattice of a slab of `whole`.
+Lattice window_lattice(const Slab& slab, const Lattice& whole);
+// The body's number of a bar of the window's lattice `local`.
+index_t global_bar(const Slab& slab, const Lattice& local, const Lattice& whole, index_t bar);
+
 // The whole body's conditions restricted to the nodes the slab owns, in the numbers of its
 // window's lattice `local` (the order of each set kept); a condition on none of them is left
 // out. Ghost nodes are not included: their owner applies the condition and sends them.
@@ -50,9 +65,9 @@ Conditions slab_conditions(const Slab& slab, const Lattice& whole, const Lattice
 class SlabRun {
 public:
   // `local` is the window's lattice (nx, ny, slab.local_nz()); `conditions` refer to its
-  // nodes. The ghost planes are added as held nodes.
+  // nodes, `precracked` to its bars (sorted). The ghost planes are added as held nodes.
   SlabRun(const Slab& slab, Lattice local, BarTable table, Conditions conditions,
-          SolverOptions options);
+          SolverOptions options, std::vector<index_t> precracked = {});
 
   const Slab& slab() const { return slab_; }
   Simulation& sim() { return sim_; }

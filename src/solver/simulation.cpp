@@ -199,19 +199,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   for (std::size_t r = 0; r < node_rows_.size(); ++r)
     for (index_t i = 0; i < node_rows_[r].length; ++i)
       row_held_[r] |= held_[node_rows_[r].first + i] != 0;
-  // A row is "damaged" once any of its bars has a history above e_p (or is pre-cracked);
-  // intact rows skip reading the history.
-  row_damaged_.assign(bar_rows_.size(), 0);
-  for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
-    const BarRow& row = bar_rows_[r];
-    const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
-    for (index_t i = 0; i < lat_.family(row.family).ni; ++i) {
-      const index_t b = b0 + i;
-      const double ep = table_.per_bar() ? table_.e_p_bar()[b] : table_.family(row.family).e_p;
-      if (h_[b] != ep)
-        row_damaged_[r] = 1;
-    }
-  }
+  mark_damaged_rows();
   // Row ranges of each line (j, k), and the lines of each plane k.
   planes_.assign(lat_.nz() + 1ull, {0, 0});
   {
@@ -259,6 +247,22 @@ void Simulation::set_velocity(const std::function<Vec3(Vec3)>& v_of_X) {
   }
 }
 
+// A row is "damaged" once any of its bars has a history above e_p (or is pre-cracked);
+// intact rows skip reading the history.
+void Simulation::mark_damaged_rows() {
+  row_damaged_.assign(bar_rows_.size(), 0);
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
+    const BarRow& row = bar_rows_[r];
+    const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
+    for (index_t i = 0; i < lat_.family(row.family).ni; ++i) {
+      const index_t b = b0 + i;
+      const double ep = table_.per_bar() ? table_.e_p_bar()[b] : table_.family(row.family).e_p;
+      if (h_[b] != ep)
+        row_damaged_[r] = 1;
+    }
+  }
+}
+
 void Simulation::set_time_step(double dt) {
   if (step_ != 0)
     throw InputError("time step: dt can only change before the first step");
@@ -295,17 +299,39 @@ void Simulation::set_displacement(index_t node, Vec3 u) {
   set_half_step_velocity(node, v);
 }
 
-void Simulation::append_displacements(index_t first, index_t count,
-                                      std::vector<double>& out) const {
-  for (const std::vector<double>* u : {&ux_, &uy_, &uz_})
-    out.insert(out.end(), u->begin() + first, u->begin() + first + count);
+void Simulation::append_displacements(index_t first, index_t count, std::vector<double>& out,
+                                      bool previous) const {
+  for (const std::vector<double>* u : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_})
+    if ((u == &wx_ || u == &wy_ || u == &wz_) == previous)
+      out.insert(out.end(), u->begin() + first, u->begin() + first + count);
 }
 
-void Simulation::assign_displacements(index_t first, index_t count, const double* in) {
-  for (std::vector<double>* u : {&ux_, &uy_, &uz_}) {
-    std::copy(in, in + count, u->begin() + first);
-    in += count;
-  }
+void Simulation::assign_displacements(index_t first, index_t count, const double* in,
+                                      bool previous) {
+  for (std::vector<double>* u : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_})
+    if ((u == &wx_ || u == &wy_ || u == &wz_) == previous) {
+      std::copy(in, in + count, u->begin() + first);
+      in += count;
+    }
+}
+
+void Simulation::append_histories(index_t first, index_t count, std::vector<double>& out) const {
+  out.insert(out.end(), h_.begin() + first, h_.begin() + first + count);
+}
+
+void Simulation::assign_histories(index_t first, index_t count, const double* in) {
+  std::copy(in, in + count, h_.begin() + first);
+}
+
+void Simulation::restore_progress(std::uint64_t step, const std::array<double, 3>& ledger,
+                                  const EnergyReport& report, std::vector<Event> pending) {
+  step_ = step;
+  ledger_.set_state(ledger);
+  report_ = report;
+  for (auto& ev : thread_events_)
+    ev.clear();
+  thread_events_[0] = std::move(pending);
+  mark_damaged_rows();
 }
 
 // ---------------------------------------------------------------------------------------

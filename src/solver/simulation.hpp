@@ -124,11 +124,25 @@ public:
   Vec3 displacement(index_t node) const { return {ux_[node], uy_[node], uz_[node]}; }
   Vec3 half_step_velocity(index_t node) const;
   void set_displacement(index_t node, Vec3 u);
-  // Halo exchange of distributed runs: u_n of nodes [first, first + count) appended to `out`
-  // as an x block, a y block and a z block; and u_n of those nodes set from such blocks
-  // (u_{n-1} untouched: for held ghost nodes it is never read).
-  void append_displacements(index_t first, index_t count, std::vector<double>& out) const;
-  void assign_displacements(index_t first, index_t count, const double* in);
+  // Halo exchange and state transfers of distributed runs: u_n (or, with `previous`, u_{n-1})
+  // of nodes [first, first + count) appended to `out` as an x block, a y block and a z block;
+  // and set from such blocks (the halo sets u_n alone: for held ghost nodes u_{n-1} is never
+  // read). Likewise the histories of bars [first, first + count).
+  void append_displacements(index_t first, index_t count, std::vector<double>& out,
+                            bool previous = false) const;
+  void assign_displacements(index_t first, index_t count, const double* in,
+                            bool previous = false);
+  void append_histories(index_t first, index_t count, std::vector<double>& out) const;
+  void assign_histories(index_t first, index_t count, const double* in);
+  // After the displacements and histories are assigned: the step count, the energy
+  // accumulators (Ledger::state), the last report and the events not yet taken, as
+  // save_state would give them. The rows' damage flags are derived again from the histories.
+  void restore_progress(std::uint64_t step, const std::array<double, 3>& ledger,
+                        const EnergyReport& report, std::vector<Event> pending);
+  std::array<double, 3> ledger_state() const { return ledger_.state(); }
+  // The kinetic energy of the imposed-velocity DOF in the last report (part of its kinetic
+  // energy, not of report_node_kinetic's rows).
+  double report_condition_kinetic() const { return cond_kinetic_; }
   void set_half_step_velocity(index_t node, Vec3 v);
   BarState bar_state(index_t bar) const;
   double bar_history(index_t bar) const { return h_[bar]; }
@@ -194,6 +208,7 @@ private:
   template <bool Damped, bool Loads, bool Report>
   void node_rows_range(std::size_t begin, std::size_t end, const double* s_plane,
                        const double* s_below);
+  void mark_damaged_rows();
   void apply_loads(double t);
   void apply_velocities(double t, bool report);
   void compute_energies(bool report);

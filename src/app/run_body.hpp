@@ -1,0 +1,76 @@
+// The body a case run steps: the case's Simulation in one process, or one slab per process
+// of a distributed run (src/parallel/slab.hpp) with a copy of the whole body on the first
+// process that the outputs read.
+//
+// In a distributed run every member is collective: all processes call them in the same
+// order. What the outputs need comes to the first process:
+// - energies: each slab's owned rows gathered and summed in the body's row order (elastic,
+//   dissipated and the nodes' kinetic energy: the bits of one process); the external work,
+//   the damping dissipation and the kinetic energy of imposed-velocity DOF are summed per
+//   slab first, then over the slabs in rank order (the same to about 1e-15 relative);
+// - events of the bars each slab owns, in the body's numbers and (step, bar) order;
+// - probes: the owner's bar force, the reaction's per-node terms summed in the set's order;
+// - snapshots, checkpoints and the end summary: the owned nodes' displacements and owned
+//   bars' histories copied into the whole-body Simulation (`whole`).
+#pragma once
+
+#include "app/case_run.hpp"
+#include "parallel/slab.hpp"
+
+#include <array>
+#include <memory>
+#include <vector>
+
+namespace ldem {
+
+class RunBody {
+public:
+  // One process: steps c.sim.
+  explicit RunBody(BuiltCase& c);
+  // A slab of the case per process. c.sim is the whole body on the first process (its time
+  // step is every slab's) and empty elsewhere. Throws InputError when a slab cannot be built.
+  RunBody(BuiltCase& c, int ranks, int rank);
+
+  bool distributed() const { return run_ != nullptr; }
+  // This process writes the outputs.
+  bool writes() const { return rank_ == 0; }
+  const Lattice& lattice() const { return *c_.lattice; }
+  double dt() const { return dt_; }
+  std::uint64_t step_count() const;
+  double time() const { return static_cast<double>(step_count()) * dt_; }
+
+  // One step (and, distributed, the exchange of ghost planes).
+  void step(bool report);
+  // The whole body's energies of the last report step (first process).
+  const EnergyReport& last_report() const { return report_; }
+  // The whole body's events since the last call (first process; empty elsewhere).
+  std::vector<Event> take_events();
+  // The first node of the body with a displacement beyond `limit` or not finite, or
+  // num_nodes(): the same on every process.
+  index_t first_node_beyond(double limit);
+  // The case's probes at the current state (first process).
+  std::vector<double> probe_values();
+  // Every process's `value`, the largest (signals, decisions of the first process).
+  int max_over_processes(int value) const;
+
+  // The whole-body Simulation holding the current displacements u_n and u_{n-1} and the
+  // histories (with `full` also the energy accumulators and the events not yet taken: what a
+  // checkpoint saves). Called on every process; the first gets the Simulation, the others
+  // nullptr.
+  Simulation* whole(bool full);
+  // After c.sim (first process) has loaded a checkpoint: every slab takes its window's state
+  // from it.
+  void spread_whole_state();
+
+private:
+  void add_report();
+  BuiltCase& c_;
+  int rank_ = 0, ranks_ = 1;
+  double dt_ = 0.0;
+  std::unique_ptr<SlabRun> run_;
+  std::vector<double> halo_[4];
+  EnergyReport report_{};
+  double initial_ = 0.0; // the whole body's elastic + kinetic energy at t = 0
+};
+
+} // namespace ldem

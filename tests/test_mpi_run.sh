@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# `ldem run` and `ldem resume` across MPI processes against one process: the same output folder
+# (tests/compare_runs.py says what may differ and why), checkpoints resumed on another number
+# of processes, and bad input refused once with no folder created.
+# usage: test_mpi_run.sh LDEM SOURCE_DIR MPIEXEC PROCESSES...
+set -uo pipefail
+LDEM=$1
+SRC=$2
+MPIEXEC=$3
+shift 3
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fails=0
+bad() { echo "FAIL: $*"; fails=$((fails + 1)); }
+compare() { /usr/bin/python3 "$SRC/tests/compare_runs.py" "$1" "$2" || bad "$3"; }
+mpi() { local np=$1; shift; "$MPIEXEC" -np "$np" --oversubscribe "$LDEM" "$@"; }
+
+# The shipped cases, shortened: the tutorial plate (imposed velocities, damping, a notch), the
+# graded plate (E and Gf graded along z, the paper's step rule, a pre-crack, probes) and the
+# fatigue plate (Weibull toughness, fixed border, loads, bar-force and load probes).
+sed 's/^end = .*/end = 1.0e-3/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/tutorial.toml"
+sed 's/^end = .*/end = 6.0e-6/' "$SRC/cases/fgm_plate/graded_modulus_toughness.toml" >"$T/graded.toml"
+sed 's/^end = .*/end = 0.004/' "$SRC/cases/subcritical_fatigue_coarse.toml" >"$T/fatigue.toml"
+for c in tutorial graded fatigue; do
+  "$LDEM" run "$T/$c.toml" --out "$T/$c-1" --no-plot --threads 1 >/dev/null 2>"$T/err" ||
+    bad "$c on one process: $(cat "$T/err")"
+  for np in "$@"; do
+    mpi "$np" run "$T/$c.toml" --out "$T/$c-$np" --no-plot --threads 1 >/dev/null 2>"$T/err" ||
+      bad "$c on $np processes: $(cat "$T/err")"
+    compare "$T/$c-1" "$T/$c-$np" "$c: $np processes against one"
+  done
+done
+
+# Checkpoints: written by P processes, resumed by one and by P + 1 (and one process's by P):
+# the resumed runs redo the steps after the checkpoint and must write the same folder.
+for np in "$@"; do
+  mpi "$np" run "$T/graded.toml" --out "$T/ck-$np" --no-plot --threads 1 --checkpoint-every 150 \
+    >/dev/null 2>"$T/err" || bad "checkpointed run on $np processes: $(cat "$T/err")"
+  for resume_np in 1 $((np + 1)); do
+    cp -r "$T/ck-$np" "$T/ck-$np-$resume_np"
+    if [ "$resume_np" = 1 ]; then
+      "$LDEM" resume "$T/ck-$np-$resume_np" --no-plot --threads 1 >/dev/null 2>"$T/err"
+    else
+      mpi "$resume_np" resume "$T/ck-$np-$resume_np" --no-plot --threads 1 >/dev/null 2>"$T/err"
+    fi
+    [ $? -eq 0 ] && grep -q "resuming" "$T/err" || bad "resume on $resume_np of $np: $(cat "$T/err")"
+    compare "$T/graded-1" "$T/ck-$np-$resume_np" "checkpoint of $np processes resumed on $resume_np"
+  done
+done
+"$LDEM" run "$T/graded.toml" --out "$T/ck-1" --no-plot --threads 1 --checkpoint-every 150 \
+  >/dev/null 2>&1
+np=${!#}
+mpi "$np" resume "$T/ck-1" --no-plot --threads 1 >/dev/null 2>"$T/err" || bad "resume of one process's checkpoint on $np: $(cat "$T/err")"
+compare "$T/graded-1" "$T/ck-1" "checkpoint of one process resumed on $np"
+
+# Bad input: one message, exit 2, no folder. A body of 1 module along z cannot be split.
+printf '[case]\ntitle = "thin"\n[lattice]\nmodules = [4, 4, 1]\nL = 0.01\n[material]\nE = 35.0e9\nrho = 2400.0\nGf = 10.0\ne_p = 1.0e-4\n[time]\nend = 1.0e-5\n' >"$T/thin.toml"
+"$LDEM" check "$T/thin.toml" >/dev/null 2>&1 || bad "the thin case is not valid on one process"
+mpi 2 run "$T/thin.toml" --out "$T/thin" --no-plot >/dev/null 2>"$T/err"
+rc=$?
+if [ $rc -ne 2 ] || [ "$(grep -c "cannot be shared by 2 processes" "$T/err")" -ne 1 ] || [ -e "$T/thin" ]; then
+  bad "a body thinner than the processes: rc $rc, $(cat "$T/err")"
+fi
+sed 's/^E = 35.0e9/E = "x"/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/typo.toml"
+mpi 2 run "$T/typo.toml" --out "$T/typo" --no-plot >/dev/null 2>"$T/err"
+rc=$?
+if [ $rc -ne 2 ] || [ "$(grep -c "material.E: expected a number" "$T/err")" -ne 1 ] || [ -e "$T/typo" ]; then
+  bad "a bad case on 2 processes: rc $rc, $(cat "$T/err")"
+fi
+
+if [ $fails -ne 0 ]; then echo "$fails failures"; exit 1; fi
+echo "all distributed runs agree with one process"
