@@ -703,7 +703,7 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       head += "," + p.name;
     probes->write(head + "\n");
   }
-  auto flush_events = [&] {
+  auto flush_events = [&] { // first process
     std::string rows;
     for (const Event& e : body.take_events()) {
       const Vec3 m = lat.bar_centre(e.bar);
@@ -712,15 +712,12 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
                           e.state == BarState::Softening ? "softening" : "broken",
                           static_cast<double>(e.step) * body.dt(), m.x, m.y, m.z);
     }
-    if (writes)
-      events->write(rows);
+    events->write(rows);
   };
+  // The probes at the start of the last report step.
   auto probe_row = [&]() {
-    const std::vector<double> values = body.probe_values();
-    if (!writes)
-      return;
-    std::string row = fmt::format("{:.9g}", body.time());
-    for (double v : values)
+    std::string row = fmt::format("{:.9g}", body.last_report().time);
+    for (double v : body.last_probes())
       row += fmt::format(",{:.9g}", v);
     probes->write(row + "\n");
   };
@@ -814,25 +811,22 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
         write_file(dir + "lattice.pvd", lattice_pvd(st.snapshots));
       }
     }
-    if (report)
-      probe_row();
     body.step(report);
-    if (report) {
+    if (report && writes) {
+      probe_row();
       flush_events();
-      if (writes) {
-        const EnergyReport& r = body.last_report();
-        energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g}\n", r.time,
-                                  r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
-                                  r.damping_dissipated, r.balance_error));
-        if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
-            n > 0)
-          st.max_balance = std::max(st.max_balance, r.balance_error);
-        energy->flush();
-        events->flush();
-        probes->flush();
-        progress->update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error,
-                         n == steps);
-      }
+      const EnergyReport& r = body.last_report();
+      energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g}\n", r.time,
+                                r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
+                                r.damping_dissipated, r.balance_error));
+      if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
+          n > 0)
+        st.max_balance = std::max(st.max_balance, r.balance_error);
+      energy->flush();
+      events->flush();
+      probes->flush();
+      progress->update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error,
+                       n == steps);
     }
   }
   if (signal)

@@ -107,46 +107,147 @@ std::uint64_t RunBody::step_count() const {
 
 void RunBody::step(bool report) {
   if (!run_) {
+    if (report)
+      probes_ = serial_probes();
     c_.sim->step(report);
     if (report)
       report_ = c_.sim->last_report();
     return;
   }
   const bool first_step = run_->sim().step_count() == 0; // energies are computed at step 0
+  send_.clear();
+  if (report)
+    append_probe_terms(send_);
   run_->sim().step(report);
   exchange_halos(*run_, halo_);
-  if (report || first_step)
-    add_report();
+  if (!report && !first_step)
+    return;
+  append_energy_rows(send_);
+  append_events(send_);
+  gather_on_first(send_, received_);
+  read_report(report);
 }
 
-void RunBody::add_report() {
+std::vector<double> RunBody::serial_probes() const {
+  const auto& probes = c_.spec.probes;
+  const Simulation& sim = *c_.sim;
+  std::vector<double> values(probes.size(), 0.0);
+  for (std::size_t i = 0; i < probes.size(); ++i) {
+    const ProbeSpec& p = probes[i];
+    if (p.kind == ProbeSpec::Kind::BarForce)
+      values[i] = sim.bar_force(c_.probe_bars[i]);
+    else if (p.kind == ProbeSpec::Kind::Reaction)
+      // The support force that holds the set: minus the bar forces and loads on its nodes.
+      for (index_t n : set_named(c_.sets, p.set).nodes)
+        values[i] -= reaction_term(sim, n, p.component);
+    else
+      values[i] = load_probe(c_, p, sim.time());
+  }
+  return values;
+}
+
+namespace {
+
+bool owns_node(const Slab& slab, const Lattice& whole, index_t node) {
+  const NodeAddress a = whole.node_address(node);
+  return slab.owns_plane(a.k, !a.centre);
+}
+
+bool owns_bar(const Slab& slab, const Lattice& whole, index_t bar) {
+  return slab.owns_plane(whole.bar_address(bar).k, true);
+}
+
+// Appends a list's length, then reserves it: returns the length's place, to be set.
+std::size_t open_list(std::vector<double>& out) {
+  out.push_back(0.0);
+  return out.size() - 1;
+}
+void close_list(std::vector<double>& out, std::size_t at) {
+  out[at] = static_cast<double>(out.size() - at - 1);
+}
+
+} // namespace
+
+void RunBody::append_probe_terms(std::vector<double>& out) const {
+  // Each slab evaluates what it owns: the probed bar, the set's nodes (in the set's order).
+  const Lattice& whole = lattice();
+  const Slab& slab = run_->slab();
+  const Simulation& sim = run_->sim();
+  const std::size_t at = open_list(out);
+  for (std::size_t i = 0; i < c_.spec.probes.size(); ++i) {
+    const ProbeSpec& p = c_.spec.probes[i];
+    if (p.kind == ProbeSpec::Kind::BarForce && owns_bar(slab, whole, c_.probe_bars[i])) {
+      const BarAddress a = whole.bar_address(c_.probe_bars[i]);
+      out.push_back(sim.bar_force(sim.lattice().bar(a.family, a.i, a.j, a.k - slab.w0)));
+    } else if (p.kind == ProbeSpec::Kind::Reaction) {
+      for (index_t n : set_named(c_.sets, p.set).nodes)
+        if (owns_node(slab, whole, n))
+          out.push_back(reaction_term(sim, run_->local_node(whole.node_address(n)), p.component));
+    }
+  }
+  close_list(out, at);
+}
+
+void RunBody::append_energy_rows(std::vector<double>& out) const {
   const Simulation& sim = run_->sim();
   std::vector<double> rows[3];
   run_->append_owned_energy_rows(rows[0], rows[1], rows[2]);
   const EnergyReport& r = sim.last_report();
-  std::vector<double> mine = {r.external_work, r.damping_dissipated,
-                              sim.report_condition_kinetic(), static_cast<double>(rows[0].size()),
-                              static_cast<double>(rows[2].size())};
+  out.insert(out.end(), {r.external_work, r.damping_dissipated, sim.report_condition_kinetic(),
+                         static_cast<double>(rows[0].size()),
+                         static_cast<double>(rows[2].size())});
   for (const auto& v : rows)
-    mine.insert(mine.end(), v.begin(), v.end());
-  const std::vector<double> all = gather_on_first(mine);
+    out.insert(out.end(), v.begin(), v.end());
+}
+
+void RunBody::append_events(std::vector<double>& out) {
+  const Slab& slab = run_->slab();
+  const Lattice& local = run_->sim().lattice();
+  const std::size_t at = open_list(out);
+  for (const Event& e : run_->sim().take_events()) {
+    // Events of the ghost module's bars are their owner's to report.
+    if (!slab.owns_plane(local.bar_address(e.bar).k + slab.w0, true))
+      continue;
+    out.push_back(global_bar(slab, local, lattice(), e.bar));
+    out.push_back(static_cast<double>(e.state));
+    out.push_back(static_cast<double>(e.step));
+  }
+  close_list(out, at);
+}
+
+void RunBody::read_report(bool report) {
   if (!writes())
     return;
-  // Per slab: its sums, then its elastic, dissipated and kinetic rows. The rows of all
-  // slabs in rank order are the body's rows in order.
+  const std::vector<double>& all = received_;
+  const Lattice& whole = lattice();
+  const auto& probes = c_.spec.probes;
+  // Per process, in rank order: its probe terms, its sums and energy rows, its events. The
+  // rows of all processes in rank order are the body's rows in order.
+  std::vector<const double*> probe_terms;
   std::vector<double> elastic_rows, damage_rows, kinetic_rows;
   double work = 0.0, damping = 0.0, kinetic = 0.0;
-  for (std::size_t pos = 0; pos < all.size();) {
+  std::size_t pos = 0;
+  for (int r = 0; r < ranks_; ++r) {
+    if (report) {
+      probe_terms.push_back(all.data() + pos + 1);
+      pos += 1 + static_cast<std::size_t>(all[pos]);
+    }
     work += all[pos];
     damping += all[pos + 1];
     kinetic += all[pos + 2];
-    const auto nb = static_cast<std::size_t>(all[pos + 3]), nn = static_cast<std::size_t>(all[pos + 4]);
-    pos += 5;
-    elastic_rows.insert(elastic_rows.end(), all.begin() + pos, all.begin() + pos + nb);
-    damage_rows.insert(damage_rows.end(), all.begin() + pos + nb, all.begin() + pos + 2 * nb);
-    kinetic_rows.insert(kinetic_rows.end(), all.begin() + pos + 2 * nb,
-                        all.begin() + pos + 2 * nb + nn);
-    pos += 2 * nb + nn;
+    const auto nb = static_cast<std::size_t>(all[pos + 3]);
+    const auto nn = static_cast<std::size_t>(all[pos + 4]);
+    const auto rows = all.begin() + static_cast<std::ptrdiff_t>(pos + 5);
+    const auto b = static_cast<std::ptrdiff_t>(nb), n = static_cast<std::ptrdiff_t>(nn);
+    elastic_rows.insert(elastic_rows.end(), rows, rows + b);
+    damage_rows.insert(damage_rows.end(), rows + b, rows + 2 * b);
+    kinetic_rows.insert(kinetic_rows.end(), rows + 2 * b, rows + 2 * b + n);
+    pos += 5 + 2 * nb + nn;
+    const auto ne = static_cast<std::size_t>(all[pos]);
+    for (std::size_t q = pos + 1; q < pos + 1 + ne; q += 3)
+      events_.push_back({static_cast<index_t>(all[q]), static_cast<BarState>(all[q + 1]),
+                         static_cast<std::uint64_t>(all[q + 2])});
+    pos += 1 + ne;
   }
   // From zero, row after row, as one process sums them (the kinetic energy after the
   // imposed-velocity DOF's, as there).
@@ -157,34 +258,45 @@ void RunBody::add_report() {
     damage += x;
   for (double x : kinetic_rows)
     kinetic += x;
-  if (r.time == 0.0)
+  const double t = run_->sim().last_report().time;
+  if (t == 0.0)
     initial_ = elastic + kinetic;
   Ledger ledger;
   ledger.set_state({work, damping, initial_});
-  report_ = ledger.report(r.time, elastic, kinetic, damage, 0.0, 0.0);
+  report_ = ledger.report(t, elastic, kinetic, damage, 0.0, 0.0);
+  if (!report)
+    return;
+  // Probes: the owner's bar force; a reaction's terms subtracted in the set's order, each
+  // from the process that owns the node.
+  std::vector<Slab> slabs;
+  for (int r = 0; r < ranks_; ++r)
+    slabs.push_back(make_slab(whole.nz(), ranks_, r));
+  probes_.assign(probes.size(), 0.0);
+  for (std::size_t i = 0; i < probes.size(); ++i) {
+    const ProbeSpec& p = probes[i];
+    if (p.kind == ProbeSpec::Kind::BarForce) {
+      for (std::size_t r = 0; r < slabs.size(); ++r)
+        if (owns_bar(slabs[r], whole, c_.probe_bars[i]))
+          probes_[i] = *probe_terms[r]++;
+    } else if (p.kind == ProbeSpec::Kind::Reaction) {
+      for (index_t n : set_named(c_.sets, p.set).nodes)
+        for (std::size_t r = 0; r < slabs.size(); ++r)
+          if (owns_node(slabs[r], whole, n))
+            probes_[i] -= *probe_terms[r]++;
+    } else {
+      probes_[i] = load_probe(c_, p, t);
+    }
+  }
 }
 
 std::vector<Event> RunBody::take_events() {
   if (!run_)
     return c_.sim->take_events();
-  const Slab& slab = run_->slab();
-  const Lattice& local = run_->sim().lattice();
-  std::vector<double> mine;
-  for (const Event& e : run_->sim().take_events()) {
-    // Events of the ghost module's bars are their owner's to report.
-    if (!slab.owns_plane(local.bar_address(e.bar).k + slab.w0, true))
-      continue;
-    mine.push_back(global_bar(slab, local, lattice(), e.bar));
-    mine.push_back(static_cast<double>(e.state));
-    mine.push_back(static_cast<double>(e.step));
-  }
-  const std::vector<double> all = gather_on_first(mine);
   if (!writes())
     return {};
   std::vector<Event> events = c_.sim->take_events(); // any left from a checkpoint
-  for (std::size_t i = 0; i + 2 < all.size(); i += 3)
-    events.push_back({static_cast<index_t>(all[i]), static_cast<BarState>(all[i + 1]),
-                      static_cast<std::uint64_t>(all[i + 2])});
+  events.insert(events.end(), events_.begin(), events_.end());
+  events_.clear();
   sort_events(events);
   return events;
 }
@@ -204,85 +316,6 @@ index_t RunBody::first_node_beyond(double limit) {
   return static_cast<index_t>(min_over_processes(global));
 }
 
-std::vector<double> RunBody::probe_values() {
-  const auto& probes = c_.spec.probes;
-  std::vector<double> values(probes.size(), 0.0);
-  if (!run_) {
-    const Simulation& sim = *c_.sim;
-    for (std::size_t i = 0; i < probes.size(); ++i) {
-      const ProbeSpec& p = probes[i];
-      if (p.kind == ProbeSpec::Kind::BarForce)
-        values[i] = sim.bar_force(c_.probe_bars[i]);
-      else if (p.kind == ProbeSpec::Kind::Reaction)
-        // The support force that holds the set: minus the bar forces and loads on its nodes.
-        for (index_t n : set_named(c_.sets, p.set).nodes)
-          values[i] -= reaction_term(sim, n, p.component);
-      else
-        values[i] = load_probe(c_, p, sim.time());
-    }
-    return values;
-  }
-  // Each slab evaluates what it owns: the probed bar, the set's nodes (in the set's order).
-  const Lattice& whole = lattice();
-  const auto owner = [&](const Slab& slab, index_t node) {
-    const NodeAddress a = whole.node_address(node);
-    return slab.owns_plane(a.k, !a.centre);
-  };
-  const auto owns_bar = [&](const Slab& slab, index_t bar) {
-    return slab.owns_plane(whole.bar_address(bar).k, true);
-  };
-  const Slab& mine_slab = run_->slab();
-  const Simulation& sim = run_->sim();
-  std::vector<double> mine;
-  for (std::size_t i = 0; i < probes.size(); ++i) {
-    const ProbeSpec& p = probes[i];
-    if (p.kind == ProbeSpec::Kind::BarForce && owns_bar(mine_slab, c_.probe_bars[i])) {
-      const BarAddress a = whole.bar_address(c_.probe_bars[i]);
-      mine.push_back(
-          sim.bar_force(sim.lattice().bar(a.family, a.i, a.j, a.k - mine_slab.w0)));
-    } else if (p.kind == ProbeSpec::Kind::Reaction) {
-      for (index_t n : set_named(c_.sets, p.set).nodes)
-        if (owner(mine_slab, n))
-          mine.push_back(reaction_term(sim, run_->local_node(whole.node_address(n)), p.component));
-    }
-  }
-  const std::vector<double> all = gather_on_first(mine);
-  if (!writes())
-    return values;
-  // Slab p's values, probe by probe, start at from[p][i].
-  std::vector<Slab> slabs;
-  for (int r = 0; r < ranks_; ++r)
-    slabs.push_back(make_slab(whole.nz(), ranks_, r));
-  std::vector<std::vector<std::size_t>> from(slabs.size(), std::vector<std::size_t>(probes.size()));
-  std::size_t pos = 0;
-  for (std::size_t r = 0; r < slabs.size(); ++r)
-    for (std::size_t i = 0; i < probes.size(); ++i) {
-      from[r][i] = pos;
-      const ProbeSpec& p = probes[i];
-      if (p.kind == ProbeSpec::Kind::BarForce)
-        pos += owns_bar(slabs[r], c_.probe_bars[i]) ? 1 : 0;
-      else if (p.kind == ProbeSpec::Kind::Reaction)
-        for (index_t n : set_named(c_.sets, p.set).nodes)
-          pos += owner(slabs[r], n) ? 1 : 0;
-    }
-  for (std::size_t i = 0; i < probes.size(); ++i) {
-    const ProbeSpec& p = probes[i];
-    if (p.kind == ProbeSpec::Kind::BarForce) {
-      for (std::size_t r = 0; r < slabs.size(); ++r)
-        if (owns_bar(slabs[r], c_.probe_bars[i]))
-          values[i] = all[from[r][i]];
-    } else if (p.kind == ProbeSpec::Kind::Reaction) {
-      for (index_t n : set_named(c_.sets, p.set).nodes) // the set's order, as one process
-        for (std::size_t r = 0; r < slabs.size(); ++r)
-          if (owner(slabs[r], n))
-            values[i] -= all[from[r][i]++];
-    } else {
-      values[i] = load_probe(c_, p, time());
-    }
-  }
-  return values;
-}
-
 int RunBody::max_over_processes(int value) const {
   return static_cast<int>(ldem::max_over_processes(static_cast<double>(value)));
 }
@@ -290,12 +323,10 @@ int RunBody::max_over_processes(int value) const {
 Simulation* RunBody::whole(bool full) {
   if (!run_)
     return c_.sim.get();
-  std::vector<Event> pending;
-  if (full)
-    pending = take_events(); // collective; the whole body's on the first process
   const Simulation& sim = run_->sim();
   const Lattice& body = lattice();
-  std::vector<double> mine;
+  std::vector<double>& mine = send_;
+  mine.clear();
   for (bool previous : {false, true}) // u_{n-1} too: snapshots show velocities
     for (const Span& s : slab_node_spans(run_->slab(), body, true))
       sim.append_displacements(s.local_first, s.count, mine, previous);
@@ -304,11 +335,13 @@ Simulation* RunBody::whole(bool full) {
   const std::array<double, 3> ledger = sim.ledger_state();
   mine.push_back(ledger[0]);
   mine.push_back(ledger[1]);
-  const std::vector<double> all = gather_on_first(mine);
+  if (full)
+    append_events(mine); // those since the last report
+  gather_on_first(mine, received_);
   if (!writes())
     return nullptr;
   Simulation& w = *c_.sim;
-  const double* in = all.data();
+  const double* in = received_.data();
   double work = 0.0, damping = 0.0;
   for (int r = 0; r < ranks_; ++r) {
     const Slab slab = make_slab(body.nz(), ranks_, r);
@@ -324,9 +357,15 @@ Simulation* RunBody::whole(bool full) {
     work += in[0];
     damping += in[1];
     in += 2;
+    if (full) {
+      const auto ne = static_cast<std::size_t>(in[0]);
+      for (std::size_t q = 1; q + 2 <= ne; q += 3)
+        events_.push_back({static_cast<index_t>(in[q]), static_cast<BarState>(in[q + 1]),
+                           static_cast<std::uint64_t>(in[q + 2])});
+      in += 1 + ne;
+    }
   }
-  if (!full)
-    pending = w.take_events();
+  std::vector<Event> pending = take_events(); // a checkpoint keeps those not yet written
   const std::array<double, 3> state =
       full ? std::array<double, 3>{work, damping, initial_} : w.ledger_state();
   w.restore_progress(step_count(), state, report_, std::move(pending));

@@ -39,17 +39,20 @@ public:
   std::uint64_t step_count() const;
   double time() const { return static_cast<double>(step_count()) * dt_; }
 
-  // One step (and, distributed, the exchange of ghost planes).
+  // One step (and, distributed, the exchange of ghost planes). With `report`, the probes at
+  // the step's start and the energies; distributed, these and the step's events come to the
+  // first process in one gather.
   void step(bool report);
   // The whole body's energies of the last report step (first process).
   const EnergyReport& last_report() const { return report_; }
-  // The whole body's events since the last call (first process; empty elsewhere).
+  // The case's probes at the start of the last report step (first process).
+  const std::vector<double>& last_probes() const { return probes_; }
+  // The whole body's events gathered so far and not yet taken, in (step, bar) order (first
+  // process; empty elsewhere). Not collective.
   std::vector<Event> take_events();
   // The first node of the body with a displacement beyond `limit` or not finite, or
   // num_nodes(): the same on every process.
   index_t first_node_beyond(double limit);
-  // The case's probes at the current state (first process).
-  std::vector<double> probe_values();
   // Every process's `value`, the largest (signals, decisions of the first process).
   int max_over_processes(int value) const;
 
@@ -63,13 +66,22 @@ public:
   void spread_whole_state();
 
 private:
-  void add_report();
+  // This process's part of a report: probe terms, energy rows and sums, events (each list
+  // preceded by its length), and the first process's reading of all parts.
+  void append_probe_terms(std::vector<double>& out) const;
+  void append_energy_rows(std::vector<double>& out) const;
+  void append_events(std::vector<double>& out);
+  void read_report(bool report); // from received_
+  std::vector<double> serial_probes() const;
   BuiltCase& c_;
   int rank_ = 0, ranks_ = 1;
   double dt_ = 0.0;
   std::unique_ptr<SlabRun> run_;
   std::vector<double> halo_[4];
+  std::vector<double> send_, received_; // gathers' buffers, kept from call to call
   EnergyReport report_{};
+  std::vector<double> probes_;
+  std::vector<Event> events_; // gathered, not yet taken (first process)
   double initial_ = 0.0; // the whole body's elastic + kinetic energy at t = 0
 };
 

@@ -94,9 +94,11 @@ void exchange_halos(SlabRun& run, std::vector<double> (&buf)[4]) {
       run.unpack(side == 0 ? -1 : +1, buf[side]);
 }
 
-std::vector<double> gather_on_first(const std::vector<double>& mine) {
-  if (!g_active)
-    return mine;
+void gather_on_first(const std::vector<double>& mine, std::vector<double>& all) {
+  if (!g_active) {
+    all.assign(mine.begin(), mine.end());
+    return;
+  }
   const int count = static_cast<int>(mine.size());
   std::vector<int> counts(static_cast<std::size_t>(process_count())), offsets(counts.size());
   MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
@@ -105,9 +107,14 @@ std::vector<double> gather_on_first(const std::vector<double>& mine) {
     offsets[r] = total;
     total += counts[r];
   }
-  std::vector<double> all(process_rank() == 0 ? static_cast<std::size_t>(total) : 0);
+  all.resize(process_rank() == 0 ? static_cast<std::size_t>(total) : 0);
   MPI_Gatherv(mine.data(), count, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE,
               0, MPI_COMM_WORLD);
+}
+
+std::vector<double> gather_on_first(const std::vector<double>& mine) {
+  std::vector<double> all;
+  gather_on_first(mine, all);
   return all;
 }
 
@@ -189,6 +196,9 @@ void exchange_halos(SlabRun& run, std::vector<double> (&)[4]) {
 }
 std::vector<double> gather_on_first(const std::vector<double>& mine) {
   return mine;
+}
+void gather_on_first(const std::vector<double>& mine, std::vector<double>& all) {
+  all.assign(mine.begin(), mine.end());
 }
 void broadcast_from_first(double*, int) {}
 std::vector<double> scatter_from_first(const std::vector<std::vector<double>>& parts) {

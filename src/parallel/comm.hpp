@@ -39,6 +39,9 @@ EnergySums gather_energies(const SlabRun& run);
 // Every rank's `mine`, concatenated in rank order, on rank 0 (empty on the others); and
 // rank 0's values to every rank.
 std::vector<double> gather_on_first(const std::vector<double>& mine);
+// The same into `all`, whose memory is kept from call to call (a fresh vector of megabytes
+// costs its page faults at every snapshot).
+void gather_on_first(const std::vector<double>& mine, std::vector<double>& all);
 void broadcast_from_first(double* values, int count);
 
 // Rank 0's parts[p] to rank p (parts is read on rank 0 only); returns this rank's part.
