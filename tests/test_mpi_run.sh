@@ -53,6 +53,27 @@ np=${!#}
 mpi "$np" resume "$T/ck-1" --no-plot --threads 1 >/dev/null 2>"$T/err" || bad "resume of one process's checkpoint on $np: $(cat "$T/err")"
 compare "$T/graded-1" "$T/ck-1" "checkpoint of one process resumed on $np"
 
+# Ctrl-C: mpirun passes it on to the processes (as SIGTERM), which agree on a step, write the
+# whole body's checkpoint and stop; resumed on another number of processes, the folder is the
+# uninterrupted run's.
+sed 's/^end = .*/end = 60.0e-6/' "$SRC/cases/fgm_plate/graded_modulus_toughness.toml" >"$T/long.toml"
+"$LDEM" run "$T/long.toml" --out "$T/long-1" --no-plot --threads 1 >/dev/null 2>&1
+"$MPIEXEC" -np 2 --oversubscribe "$LDEM" run "$T/long.toml" --out "$T/long-2" --no-plot \
+  --threads 1 >/dev/null 2>"$T/err" &
+pid=$!
+for _ in $(seq 600); do # until the run is under way: a few energy rows written
+  [ "$(cat "$T/long-2/energy.csv.part" 2>/dev/null | wc -l)" -gt 20 ] && break
+  sleep 0.05
+done
+kill -INT $pid
+wait $pid
+if [ -s "$T/long-2/checkpoint/state.ckpt" ] && grep -q "stopped by SIG" "$T/err"; then
+  mpi 3 resume "$T/long-2" --no-plot --threads 1 >/dev/null 2>"$T/err" || bad "resume after Ctrl-C: $(cat "$T/err")"
+  compare "$T/long-1" "$T/long-2" "Ctrl-C on 2 processes, resumed on 3"
+else
+  bad "Ctrl-C on 2 processes: no checkpoint ($(cat "$T/err"))"
+fi
+
 # Bad input: one message, exit 2, no folder. A body of 1 module along z cannot be split.
 printf '[case]\ntitle = "thin"\n[lattice]\nmodules = [4, 4, 1]\nL = 0.01\n[material]\nE = 35.0e9\nrho = 2400.0\nGf = 10.0\ne_p = 1.0e-4\n[time]\nend = 1.0e-5\n' >"$T/thin.toml"
 "$LDEM" check "$T/thin.toml" >/dev/null 2>&1 || bad "the thin case is not valid on one process"
