@@ -9,7 +9,8 @@ every file must be byte for byte the same, except
   imposed-velocity DOF's kinetic energy per process first, then over the processes, so those
   sums can differ from one process's by rounding (about 1e-16 relative per addition); the
   printed digits then differ by at most one unit in the last place, and the balance error
-  (their relative difference) by about 1e-15.
+  (a small difference of those sums, relative to them) by 1e-15 on short runs and up to
+  2e-13 over the coarse fatigue plate's 24,652 reports (docs/validation/distributed.md).
 
 usage: compare_runs.py DIR_A DIR_B      exits non-zero with a message on the first difference
 """
