@@ -17,17 +17,6 @@ const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& na
   throw InputError("node set \"" + name + "\" is not defined");
 }
 
-// The order of Simulation::take_events.
-void sort_events(std::vector<Event>& events) {
-  std::sort(events.begin(), events.end(), [](const Event& a, const Event& b) {
-    if (a.step != b.step)
-      return a.step < b.step;
-    if (a.bar != b.bar)
-      return a.bar < b.bar;
-    return a.state < b.state;
-  });
-}
-
 // A probe's value that needs no simulation: the total of a load at time t.
 double load_probe(const BuiltCase& c, const ProbeSpec& p, double t) {
   for (const LoadSpec& l : c.spec.loads)
@@ -297,7 +286,7 @@ std::vector<Event> RunBody::take_events() {
   std::vector<Event> events = c_.sim->take_events(); // any left from a checkpoint
   events.insert(events.end(), events_.begin(), events_.end());
   events_.clear();
-  sort_events(events);
+  std::sort(events.begin(), events.end(), event_before);
   return events;
 }
 

@@ -981,13 +981,7 @@ std::vector<Event> Simulation::take_events() {
     all.insert(all.end(), ev.begin(), ev.end());
     ev.clear();
   }
-  std::sort(all.begin(), all.end(), [](const Event& a, const Event& b) {
-    if (a.step != b.step)
-      return a.step < b.step;
-    if (a.bar != b.bar)
-      return a.bar < b.bar;
-    return a.state < b.state;
-  });
+  std::sort(all.begin(), all.end(), event_before);
   return all;
 }
 

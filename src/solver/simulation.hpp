@@ -76,6 +76,15 @@ struct Event {
   std::uint64_t step;
 };
 
+// The order in which events are reported: by step, then bar, then state.
+inline bool event_before(const Event& a, const Event& b) {
+  if (a.step != b.step)
+    return a.step < b.step;
+  if (a.bar != b.bar)
+    return a.bar < b.bar;
+  return a.state < b.state;
+}
+
 class Simulation {
 public:
   // `precracked`: bars broken from the start (sorted). Throws InputError for an unstable
