@@ -933,6 +933,21 @@ void write_fields(const Simulation& sim, const std::string& dir) {
   fields.commit();
 }
 
+// run_loop, and in a distributed run an error on one process (an output that cannot be
+// written, say) ends all of them: the others would wait for it at the next exchange.
+int guarded_loop(const std::function<int()>& loop) {
+  if (process_count() == 1)
+    return loop();
+  try {
+    return loop();
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "ldem: error: {} (process {} of {}; ending all of them)\n", e.what(),
+               process_rank(), process_count());
+    abort_processes(dynamic_cast<const InputError*>(&e) ? 2 : 1);
+    throw;
+  }
+}
+
 // The body of a run: the case's Simulation, or with several processes a slab on each (the
 // processes agree on whether it could be built).
 std::unique_ptr<RunBody> make_body(BuiltCase& c) {
@@ -994,11 +1009,13 @@ int run_command(const std::string& path, const RunOptions& o) {
                  process_count(), c.lattice->nz() / process_count(),
                  (c.lattice->nz() + process_count() - 1) / process_count());
   }
-  return run_loop(c, *body, o.out_dir, st, true, o.plots,
-                  o.checkpoint_every >= 0 ? static_cast<std::uint64_t>(o.checkpoint_every)
-                                          : c.spec.output.checkpoint_every,
-                  o.checkpoint_seconds >= 0 ? o.checkpoint_seconds
-                                            : c.spec.output.checkpoint_seconds);
+  return guarded_loop([&] {
+    return run_loop(c, *body, o.out_dir, st, true, o.plots,
+                    o.checkpoint_every >= 0 ? static_cast<std::uint64_t>(o.checkpoint_every)
+                                            : c.spec.output.checkpoint_every,
+                    o.checkpoint_seconds >= 0 ? o.checkpoint_seconds
+                                              : c.spec.output.checkpoint_seconds);
+  });
 }
 
 int resume_command(const std::string& out_dir, int threads, bool plots) {
@@ -1047,8 +1064,10 @@ int resume_command(const std::string& out_dir, int threads, bool plots) {
   if (writes)
     fmt::print(stderr, "ldem: resuming {} at step {} (t = {:.4g} s)\n", st.case_path, st.next,
                body->time());
-  return run_loop(c, *body, out_dir, st, false, plots, c.spec.output.checkpoint_every,
-                  c.spec.output.checkpoint_seconds);
+  return guarded_loop([&] {
+    return run_loop(c, *body, out_dir, st, false, plots, c.spec.output.checkpoint_every,
+                    c.spec.output.checkpoint_seconds);
+  });
 }
 
 int plot_command(const std::string& dir) {

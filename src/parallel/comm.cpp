@@ -155,6 +155,14 @@ void broadcast_from_first(std::string& bytes) {
   MPI_Bcast(bytes.data(), static_cast<int>(size), MPI_CHAR, 0, MPI_COMM_WORLD);
 }
 
+void abort_processes(int code) {
+  if (g_active && process_count() > 1) {
+    std::fflush(stdout);
+    std::fflush(stderr);
+    MPI_Abort(MPI_COMM_WORLD, code);
+  }
+}
+
 namespace {
 double reduce(double x, MPI_Op op) {
   double y = x;
@@ -205,6 +213,7 @@ std::vector<double> scatter_from_first(const std::vector<std::vector<double>>& p
   return parts.empty() ? std::vector<double>{} : parts[0];
 }
 void broadcast_from_first(std::string&) {}
+void abort_processes(int) {}
 double min_over_processes(double x) {
   return x;
 }

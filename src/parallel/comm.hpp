@@ -49,6 +49,11 @@ std::vector<double> scatter_from_first(const std::vector<std::vector<double>>& p
 // Rank 0's bytes to every rank.
 void broadcast_from_first(std::string& bytes);
 
+// Ends every process of the run with `code` (MPI_Abort): for an error on some processes
+// after they stopped agreeing step by step, which would leave the others waiting forever.
+// Without MPI, or in one process, it returns and the caller ends as usual.
+void abort_processes(int code);
+
 double min_over_processes(double x);
 double max_over_processes(double x);
 void barrier();
