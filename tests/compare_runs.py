@@ -2,7 +2,8 @@
 """Compares the output folders of two runs of one case (for instance one process and several):
 every file must be byte for byte the same, except
 
-- summary.json: wall time, rate, threads and processes may differ; every other entry the same;
+- summary.json: wall time, rate, threads, processes and their grid may differ; every other
+  entry the same;
 - energy.csv: time, elastic and dissipated energy the same text; the external work, the kinetic
   and the damping energy within one unit of their last printed digit (9 significant digits),
   and the balance error within 1e-12. Why: a distributed run sums the work, the damping and the
@@ -22,7 +23,7 @@ import sys
 
 ROUNDED = {"external_work", "kinetic", "damping_dissipated"}
 EXACT = {"time", "elastic", "damage_dissipated"}
-VARYING = {"wall_s", "bar_updates_per_s", "threads", "processes"}
+VARYING = {"wall_s", "bar_updates_per_s", "threads", "processes", "process_grid"}
 
 
 def fail(msg):

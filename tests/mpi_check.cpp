@@ -1,28 +1,28 @@
-// The slab scenario across real MPI ranks (mpirun -np P): every rank steps its slab and
-// exchanges its ghost planes through MPI; rank 0 also steps the whole body and compares
-// every owned node's displacement, every owned bar's history and the energies summed over
-// the ranks, bit for bit.
+// The subdomain scenario across real MPI ranks (mpirun -np P), on every grid of P processes
+// that fits the body: every rank steps its subdomain and exchanges its ghost nodes through
+// MPI; rank 0 also steps the whole body and compares every owned node's displacement, every
+// owned bar's history and the energies summed over the ranks, bit for bit.
 // Exit code 0 when all agree, 1 at the first difference.
 #include "parallel/comm.hpp"
-#include "slab_scenario.hpp"
+#include "subdomain_scenario.hpp"
 
 #include <cstdio>
 #include <omp.h>
 
 using namespace ldem;
-using ldem::testing::SlabScenario;
+using ldem::testing::SubdomainScenario;
 
 namespace {
 
-// 0 when every rank's slab agrees with the whole body, 1 otherwise (on every rank).
-int check(bool loaded) {
-  const int rank = process_rank(), ranks = process_count();
-  Simulation whole = SlabScenario::whole(loaded);
+// 0 when every rank's subdomain agrees with the whole body, 1 otherwise (on every rank).
+int check(bool loaded, ProcessGrid grid) {
+  const int rank = process_rank();
+  Simulation whole = SubdomainScenario::whole(loaded);
   const Lattice& lat = whole.lattice();
-  SlabRun run = SlabScenario::slab(ranks, rank, whole.dt(), loaded);
+  SubdomainRun run = SubdomainScenario::subdomain(grid, rank, whole.dt(), loaded);
   std::vector<double> buffers[4];
-  for (int step = 0; step < SlabScenario::steps; ++step) {
-    const bool report = step + 1 == SlabScenario::steps; // the last step reports energies
+  for (int step = 0; step < SubdomainScenario::steps; ++step) {
+    const bool report = step + 1 == SubdomainScenario::steps; // the last step reports energies
     if (rank == 0)
       whole.step(report);
     run.sim().step(report);
@@ -42,7 +42,7 @@ int check(bool loaded) {
     }
   for (index_t b = 0; b < loc.num_bars(); ++b) {
     index_t g = 0;
-    if (SlabScenario::owned_bar(run, lat, b, g))
+    if (SubdomainScenario::owned_bar(run, lat, b, g))
       bars.insert(bars.end(), {double(g), run.sim().bar_history(b)});
   }
   nodes = gather_on_first(nodes);
@@ -88,12 +88,12 @@ int check(bool loaded) {
       bad = 1;
     }
     if (!bad)
-      std::printf("mpi_check: %s body, %d ranks, %zu nodes, %zu bar histories and the %s energies "
-                  "identical to one process after %d steps (%llu bars broken)\n",
-                  loaded ? "held, pulled and loaded" : "free", ranks, nodes.size() / 4,
+      std::printf("mpi_check: %s body, %d x %d ranks, %zu nodes, %zu bar histories and the %s "
+                  "energies identical to one process after %d steps (%llu bars broken)\n",
+                  loaded ? "held, pulled and loaded" : "free", grid.py, grid.pz, nodes.size() / 4,
                   bars.size() / 2,
                   loaded ? "elastic and dissipated" : "elastic, dissipated and kinetic",
-                  SlabScenario::steps, static_cast<unsigned long long>(whole.broken_count()));
+                  SubdomainScenario::steps, static_cast<unsigned long long>(whole.broken_count()));
   }
   broadcast_from_first(&bad, 1);
   return bad != 0 ? 1 : 0;
@@ -104,5 +104,8 @@ int check(bool loaded) {
 int main(int argc, char** argv) {
   ProcessGroup group(argc, argv);
   omp_set_num_threads(1);
-  return check(false) | check(true);
+  int bad = 0;
+  for (const ProcessGrid grid : SubdomainScenario::grids(process_count()))
+    bad |= check(false, grid) | check(true, grid);
+  return bad;
 }

@@ -31,6 +31,29 @@ for c in tutorial graded fatigue; do
   done
 done
 
+# A thick plate (the tutorial's, 4 modules through y, the notch through all of them, a random
+# modulus per bar and a correlated random density), split over y as well as z: 2 x 1, 3 x 1
+# and 2 x 2 boxes; a checkpoint of the 2 x 2 run resumed on 3 processes (the grid they choose,
+# 1 x 3).
+sed -e 's/^end = .*/end = 2.0e-3/; s/^modules = .*/modules = [40, 4, 20]/' \
+  -e 's/^edge2 = .*/edge2 = [0.0, 0.022, 0.0]/' \
+  -e 's/^E = .*/E = { type = "weibull", mean = 35.0e9, cv = 0.1, seed = 3 }/' \
+  -e 's/^rho = .*/rho = { type = "weibull", mean = 2400.0, cv = 0.05, seed = 4, correlation_length = 0.01 }/' \
+  "$SRC/cases/tutorial/notched_plate.toml" >"$T/thick.toml"
+"$LDEM" run "$T/thick.toml" --out "$T/thick-1" --no-plot --threads 1 >/dev/null 2>"$T/err" ||
+  bad "thick plate on one process: $(cat "$T/err")"
+for grid in "2 1" "3 1" "2 2"; do
+  read -r py pz <<<"$grid"
+  mpi $((py * pz)) run "$T/thick.toml" --out "$T/thick-$py$pz" --no-plot --threads 1 \
+    --process-grid $py $pz >/dev/null 2>"$T/err" || bad "thick plate on $py x $pz: $(cat "$T/err")"
+  compare "$T/thick-1" "$T/thick-$py$pz" "thick plate: $py x $pz processes against one"
+done
+mpi 4 run "$T/thick.toml" --out "$T/thick-ck" --no-plot --threads 1 --process-grid 2 2 \
+  --checkpoint-every 3000 >/dev/null 2>"$T/err" || bad "checkpointed 2 x 2 run: $(cat "$T/err")"
+mpi 3 resume "$T/thick-ck" --no-plot --threads 1 >/dev/null 2>"$T/err" &&
+  grep -q "resuming" "$T/err" || bad "resume of a 2 x 2 checkpoint on 3: $(cat "$T/err")"
+compare "$T/thick-1" "$T/thick-ck" "checkpoint of 2 x 2 processes resumed on 1 x 3"
+
 # Checkpoints: written by P processes, resumed by one and by P + 1 (and one process's by P):
 # the resumed runs redo the steps after the checkpoint and must write the same folder.
 for np in "$@"; do
@@ -74,13 +97,27 @@ else
   bad "Ctrl-C on 2 processes: no checkpoint ($(cat "$T/err"))"
 fi
 
-# Bad input: one message, exit 2, no folder. A body of 1 module along z cannot be split.
-printf '[case]\ntitle = "thin"\n[lattice]\nmodules = [4, 4, 1]\nL = 0.01\n[material]\nE = 35.0e9\nrho = 2400.0\nGf = 10.0\ne_p = 1.0e-4\n[time]\nend = 1.0e-5\n' >"$T/thin.toml"
+# Bad input: one message, exit 2, no folder. A body of 1 module across x cannot be split.
+printf '[case]\ntitle = "thin"\n[lattice]\nmodules = [4, 1, 1]\nL = 0.01\n[material]\nE = 35.0e9\nrho = 2400.0\nGf = 10.0\ne_p = 1.0e-4\n[time]\nend = 1.0e-5\n' >"$T/thin.toml"
 "$LDEM" check "$T/thin.toml" >/dev/null 2>&1 || bad "the thin case is not valid on one process"
 mpi 2 run "$T/thin.toml" --out "$T/thin" --no-plot >/dev/null 2>"$T/err"
 rc=$?
 if [ $rc -ne 2 ] || [ "$(grep -c "cannot be shared by 2 processes" "$T/err")" -ne 1 ] || [ -e "$T/thin" ]; then
   bad "a body thinner than the processes: rc $rc, $(cat "$T/err")"
+fi
+mpi 2 run "$SRC/cases/tutorial/notched_plate.toml" --out "$T/grid" --no-plot --process-grid 2 1 \
+  >/dev/null 2>"$T/err"
+rc=$?
+if [ $rc -ne 2 ] || [ "$(grep -c -- "--process-grid 2 1: the body has 1 x 20 modules" "$T/err")" -ne 1 ] ||
+  [ -e "$T/grid" ]; then
+  bad "a grid the body cannot take: rc $rc, $(cat "$T/err")"
+fi
+mpi 2 run "$SRC/cases/tutorial/notched_plate.toml" --out "$T/grid" --no-plot --process-grid 3 1 \
+  >/dev/null 2>"$T/err"
+rc=$?
+if [ $rc -ne 2 ] || [ "$(grep -c "product is the number of processes started, 2" "$T/err")" -ne 1 ] ||
+  [ -e "$T/grid" ]; then
+  bad "a grid of another process count: rc $rc, $(cat "$T/err")"
 fi
 sed 's/^E = 35.0e9/E = "x"/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/typo.toml"
 mpi 2 run "$T/typo.toml" --out "$T/typo" --no-plot >/dev/null 2>"$T/err"

@@ -74,11 +74,15 @@ BenchResult run_bench(const BenchOptions& o) {
     r.dt = sim.dt();
     r.dt_stable = sim.stable_step().dt;
   } else {
-    // A slab per process (src/parallel/slab.hpp); all take the smallest of their steps.
-    const Slab slab = make_slab(o.nz, r.processes, process_rank());
-    Lattice lat(o.nx, o.ny, slab.local_nz(), kL);
+    // A subdomain per process (src/parallel/subdomain.hpp); all take the smallest of their
+    // steps.
+    const ProcessGrid grid = resolve_grid(o.ny, o.nz, r.processes, {o.grid_y, o.grid_z});
+    const Subdomain sub = make_subdomain(o.ny, o.nz, grid, process_rank());
+    r.grid_y = grid.py;
+    r.grid_z = grid.pz;
+    Lattice lat(o.nx, sub.y.local_n(), sub.z.local_n(), kL);
     BarTable table(lat, bench_material());
-    SlabRun run(slab, std::move(lat), std::move(table), {}, opt);
+    SubdomainRun run(sub, std::move(lat), std::move(table), {}, opt);
     Simulation& sim = run.sim();
     r.dt_stable = min_over_processes(sim.stable_step().dt);
     sim.set_time_step(opt.step.safety * r.dt_stable);
@@ -96,7 +100,8 @@ BenchResult run_bench(const BenchOptions& o) {
     sim.step(true);
     r.energy_drift = std::abs(total() - e0) / e0;
     const double local_modules = static_cast<double>(sim.lattice().num_modules());
-    const double owned_modules = static_cast<double>(slab.m1 - slab.m0) * o.nx * o.ny;
+    const double owned_modules =
+        static_cast<double>(sub.y.m1 - sub.y.m0) * (sub.z.m1 - sub.z.m0) * o.nx;
     r.bytes_per_module = max_over_processes(sim.bytes_per_module() * local_modules / owned_modules);
     r.dt = sim.dt();
   }
@@ -107,8 +112,9 @@ BenchResult run_bench(const BenchOptions& o) {
 std::string bench_line(const BenchResult& r) {
   return fmt::format(
       "ldem bar_updates_per_s={:.6g} bars={} nodes={} steps={} threads={} processes={} "
-      "wall_s={:.4f}",
-      r.bar_updates_per_s, r.bars, r.nodes, r.steps, r.threads, r.processes, r.wall_s);
+      "process_grid={}x{} wall_s={:.4f}",
+      r.bar_updates_per_s, r.bars, r.nodes, r.steps, r.threads, r.processes, r.grid_y, r.grid_z,
+      r.wall_s);
 }
 
 } // namespace ldem

@@ -1,11 +1,10 @@
 #include "app/case_run.hpp"
 
-#include "app/run_body.hpp"
-#include "parallel/comm.hpp"
-
 #include "analysis/crack.hpp"
 #include "analysis/fatigue.hpp"
+#include "app/run_body.hpp"
 #include "io/output.hpp"
+#include "parallel/comm.hpp"
 #include "solver/modes.hpp"
 #include "util/error.hpp"
 
@@ -671,7 +670,8 @@ RunState read_checkpoint(const std::string& path, std::string& payload, std::siz
 }
 
 // The time-step loop of a run, from step st.next, writing into `dir` (the first process
-// writes; in a distributed run every process steps its slab and takes part in each exchange).
+// writes; in a distributed run every process steps its subdomain and takes part in each
+// exchange).
 // `fresh`: the output files start with their headers; otherwise they continue where the
 // checkpoint left them.
 int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState st, bool fresh,
@@ -762,10 +762,10 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       break;
     bool save = n > first && checkpoint_every && n % checkpoint_every == 0;
     if (look && n > first && checkpoint_seconds > 0) // the first process's clock decides
-      save |= body.max_over_processes(
-                  writes && std::chrono::duration<double>(std::chrono::steady_clock::now() -
-                                                          last_checkpoint)
-                                    .count() > checkpoint_seconds) != 0;
+      save |=
+          body.max_over_processes(writes && std::chrono::duration<double>(
+                                                std::chrono::steady_clock::now() - last_checkpoint)
+                                                    .count() > checkpoint_seconds) != 0;
     if (save) {
       checkpoint(n);
       last_checkpoint = std::chrono::steady_clock::now();
@@ -825,8 +825,7 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       energy->flush();
       events->flush();
       probes->flush();
-      progress->update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error,
-                       n == steps);
+      progress->update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error, n == steps);
     }
   }
   if (signal)
@@ -841,20 +840,22 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   probes->commit();
   const std::uint64_t done = n - first;
   const std::uint64_t softened = sim.softening_count(), broken = sim.broken_count();
+  const ProcessGrid grid = body.grid();
   write_file(
       dir + "summary.json",
       fmt::format("{{\n  \"case\": \"{}\",\n  \"title\": \"{}\",\n  \"nodes\": {},\n"
                   "  \"bars\": {},\n  \"steps\": {},\n  \"dt\": {:.9g},\n"
                   "  \"dt_stable\": {:.9g},\n  \"end_time\": {:.9g},\n  \"wall_s\": {:.4f},\n"
                   "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n  \"processes\": {},\n"
+                  "  \"process_grid\": [1, {}, {}],\n"
                   "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
                   "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
                   "  \"interrupted\": {},\n  \"stopped_by\": {},\n  \"analysis\": {{}}\n}}\n",
                   st.case_path, s.title, lat.num_nodes(), lat.num_bars(), n, sim.dt(),
                   sim.stable_step().dt, sim.time(), wall,
                   static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
-                  omp_get_max_threads(), process_count(), st.max_balance, softened, broken,
-                  c.precracked.size(), signal ? "true" : "false",
+                  omp_get_max_threads(), process_count(), grid.py, grid.pz, st.max_balance,
+                  softened, broken, c.precracked.size(), signal ? "true" : "false",
                   stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\""));
   if (!blow_up.empty()) {
     fmt::print(stderr, "ldem: error: {}\n", blow_up);
@@ -948,15 +949,19 @@ int guarded_loop(const std::function<int()>& loop) {
   }
 }
 
-// The body of a run: the case's Simulation, or with several processes a slab on each (the
+// The body of a run: the case's Simulation, or with several processes a subdomain on each (the
 // processes agree on whether it could be built).
-std::unique_ptr<RunBody> make_body(BuiltCase& c) {
+std::unique_ptr<RunBody> make_body(BuiltCase& c, ProcessGrid asked) {
   if (process_count() == 1) {
-    c.fields = {}; // only slabs need the per-bar fields again
+    c.fields = {}; // only subdomains need the per-bar fields again
     return std::make_unique<RunBody>(c);
   }
   std::unique_ptr<RunBody> body;
-  if (!agreed([&] { body = std::make_unique<RunBody>(c, process_count(), process_rank()); }))
+  if (!agreed([&] {
+        const ProcessGrid grid =
+            resolve_grid(c.lattice->ny(), c.lattice->nz(), process_count(), asked);
+        body = std::make_unique<RunBody>(c, grid, process_rank());
+      }))
     return nullptr;
   c.fields = {};
   return body;
@@ -970,13 +975,15 @@ int run_command(const std::string& path, const RunOptions& o) {
     omp_set_num_threads(o.threads);
   const bool writes = process_rank() == 0;
   BuiltCase c;
+  ProcessGrid grid;
   // The first process builds the whole body (its time step, the outputs' copy) and prepares
-  // the folder; the others only what their slabs need.
+  // the folder; the others only what their subdomains need.
   if (!agreed([&] {
         c = build_case(path, o.adjust, writes);
-        if (process_count() > 1) // a body too thin for the slabs is refused before any output
+        if (process_count() > 1) // a body too thin to split is refused before any output
           try {
-            make_slab(c.lattice->nz(), process_count(), process_rank());
+            grid = resolve_grid(c.lattice->ny(), c.lattice->nz(), process_count(),
+                                {o.grid_y, o.grid_z});
           } catch (const InputError& e) {
             throw InputError(fmt::format("{}: {}", path, e.what()));
           }
@@ -984,7 +991,7 @@ int run_command(const std::string& path, const RunOptions& o) {
           prepare_output(o.out_dir, o.force);
       }))
     return 2;
-  const std::unique_ptr<RunBody> body = make_body(c);
+  const std::unique_ptr<RunBody> body = make_body(c, grid);
   if (!body)
     return 2;
   const std::string dir = o.out_dir + "/";
@@ -995,8 +1002,7 @@ int run_command(const std::string& path, const RunOptions& o) {
       fmt::print(stderr, "ldem: warning: {}\n", w);
     std::error_code ec;
     for (const auto& e : fs::directory_iterator(o.out_dir)) // --force: old snapshots go
-      if (e.path().extension() == ".vtu" &&
-          e.path().filename().string().rfind("lattice_", 0) == 0)
+      if (e.path().extension() == ".vtu" && e.path().filename().string().rfind("lattice_", 0) == 0)
         fs::remove(e.path());
     fs::remove_all(o.out_dir + "/checkpoint", ec);
     write_file(dir + "case.resolved.toml", resolved_case_toml(c));
@@ -1005,9 +1011,7 @@ int run_command(const std::string& path, const RunOptions& o) {
     const std::string text = read_all(path);
     st.case_hash = fnv1a(text.data(), text.size());
     if (process_count() > 1)
-      fmt::print(stderr, "ldem: {} processes, slabs of {} to {} modules along z\n",
-                 process_count(), c.lattice->nz() / process_count(),
-                 (c.lattice->nz() + process_count() - 1) / process_count());
+      fmt::print(stderr, "ldem: {}\n", describe_decomposition(*c.lattice, grid));
   }
   return guarded_loop([&] {
     return run_loop(c, *body, o.out_dir, st, true, o.plots,
@@ -1018,7 +1022,7 @@ int run_command(const std::string& path, const RunOptions& o) {
   });
 }
 
-int resume_command(const std::string& out_dir, int threads, bool plots) {
+int resume_command(const std::string& out_dir, int threads, bool plots, int grid_y, int grid_z) {
   catch_stop_signals();
   if (threads > 0)
     omp_set_num_threads(threads);
@@ -1028,7 +1032,7 @@ int resume_command(const std::string& out_dir, int threads, bool plots) {
   RunState st;
   BuiltCase c;
   // The first process reads the checkpoint (written by any number of processes: it holds the
-  // whole body) and loads it into the whole body; the slabs then take their part of it.
+  // whole body) and loads it into the whole body; the subdomains then take their part of it.
   if (!agreed([&] {
         if (!writes)
           return;
@@ -1056,7 +1060,7 @@ int resume_command(const std::string& out_dir, int threads, bool plots) {
           c = build_case(case_path, nullptr, false);
       }))
     return 2;
-  const std::unique_ptr<RunBody> body = make_body(c);
+  const std::unique_ptr<RunBody> body = make_body(c, {grid_y, grid_z});
   if (!body)
     return 2;
   body->spread_whole_state();

@@ -22,7 +22,7 @@ struct BuiltCase {
   std::vector<CutResult> cuts;
   std::vector<index_t> probe_bars; // per probe: the bar of a bar_force probe
   std::vector<std::string> warnings;
-  // What the simulation was built from, for runs that build it again in slabs: the body's
+  // What the simulation was built from, for runs that build it again in subdomains: the body's
   // lattice, its conditions, the per-bar fields (empty when uniform) and the solver options.
   std::optional<Lattice> lattice;
   Conditions conditions;
@@ -33,7 +33,7 @@ struct BuiltCase {
 // Builds everything a run needs; bad input throws InputError naming the case file. `adjust`,
 // if given, changes the case after it is read (ensemble perturbations). Without
 // `with_simulation`, sim stays empty (the processes of a distributed run other than the first
-// build only their slab).
+// build only their subdomain).
 BuiltCase build_case(const std::string& path,
                      const std::function<void(CaseSpec&)>& adjust = nullptr,
                      bool with_simulation = true);
@@ -45,13 +45,17 @@ struct RunOptions {
   bool plots = true;
   long long checkpoint_every = -1;  // steps; < 0: the case's output.checkpoint_every
   double checkpoint_seconds = -1.0; // < 0: the case's output.checkpoint_seconds
+  // Under mpirun: the processes along y and z (0 0: the grid that cuts the least).
+  int grid_y = 0, grid_z = 0;
   std::function<void(CaseSpec&)> adjust; // applied to the case after reading (ensembles)
 };
 
 int check_command(const std::string& path);
 int run_command(const std::string& path, const RunOptions& options);
 // Continues the interrupted run in `out_dir` from its checkpoint.
-int resume_command(const std::string& out_dir, int threads, bool plots);
+// Under mpirun, grid_y x grid_z processes (0 0: the grid that cuts the least).
+int resume_command(const std::string& out_dir, int threads, bool plots, int grid_y = 0,
+                   int grid_z = 0);
 int plot_command(const std::string& dir);
 // Prints the `count` lowest eigenfrequencies of the case's lattice (solver/modes.hpp) as a table,
 // with the time step and any periodic load frequency compared to the lowest. No files.

@@ -47,6 +47,16 @@ int main(int argc, char** argv) {
                    "Wall-clock seconds between checkpoints (overrides "
                    "output.checkpoint_seconds; 0: never by time)")
       ->check(CLI::NonNegativeNumber);
+  // Under mpirun: how the processes share the body (boxes over y and z).
+  std::vector<int> process_grid;
+  const auto add_grid_option = [&](CLI::App* cmd) {
+    cmd->add_option("--process-grid", process_grid,
+                    "Under mpirun: processes along y and along z, whose product is the number "
+                    "of processes (default: the grid that cuts the fewest modules)")
+        ->expected(2)
+        ->check(CLI::PositiveNumber);
+  };
+  add_grid_option(cmd_run);
 
   auto* cmd_check = app.add_subcommand(
       "check", "Validate a case and print it resolved (node and bar counts, dt and its limit, "
@@ -63,6 +73,7 @@ int main(int argc, char** argv) {
   cmd_resume->add_option("--threads", resume_threads, "OpenMP threads (0: all cores)")
       ->check(CLI::NonNegativeNumber);
   cmd_resume->add_flag("--no-plot", resume_no_plot, "Do not make the PNG plots");
+  add_grid_option(cmd_resume);
 
   std::string plot_dir;
   auto* cmd_plot =
@@ -133,6 +144,7 @@ int main(int argc, char** argv) {
   cmd_bench->add_option("--threads", bench.threads, "OpenMP threads (0: all cores)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  add_grid_option(cmd_bench);
 
   try {
     app.parse(argc, argv);
@@ -155,8 +167,20 @@ int main(int argc, char** argv) {
                  app.get_subcommands().front()->get_name(), ldem::process_count());
     return 2;
   }
+  const int grid_y = process_grid.empty() ? 0 : process_grid[0];
+  const int grid_z = process_grid.empty() ? 0 : process_grid[1];
+  if (!process_grid.empty() && grid_y * grid_z != ldem::process_count()) {
+    if (ldem::process_rank() == 0)
+      fmt::print(stderr,
+                 "ldem: error: --process-grid {} {}: expected two numbers whose product is the "
+                 "number of processes started, {}\n",
+                 grid_y, grid_z, ldem::process_count());
+    return 2;
+  }
   try {
     if (cmd_run->parsed()) {
+      run.grid_y = grid_y;
+      run.grid_z = grid_z;
       if (run.out_dir.empty()) {
         std::string stem = case_path.substr(case_path.find_last_of('/') + 1);
         if (stem.size() > 5 && stem.substr(stem.size() - 5) == ".toml")
@@ -167,7 +191,7 @@ int main(int argc, char** argv) {
       return ldem::run_command(case_path, run);
     }
     if (cmd_resume->parsed())
-      return ldem::resume_command(resume_dir, resume_threads, !resume_no_plot);
+      return ldem::resume_command(resume_dir, resume_threads, !resume_no_plot, grid_y, grid_z);
     if (cmd_check->parsed())
       return ldem::check_command(case_path);
     if (cmd_plot->parsed())
@@ -194,6 +218,8 @@ int main(int argc, char** argv) {
       bench.nx = modules[0];
       bench.ny = modules[1];
       bench.nz = modules[2];
+      bench.grid_y = grid_y;
+      bench.grid_z = grid_z;
       const ldem::BenchResult r = ldem::run_bench(bench);
       fmt::print("lattice {} x {} x {}: dt = {:.4g} s (stable {:.4g} s), {:.1f} bytes/module, "
                  "energy drift {:.2e}\n",

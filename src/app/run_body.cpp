@@ -52,42 +52,52 @@ RunBody::RunBody(BuiltCase& c) : c_(c), dt_(c.sim->dt()) {
   report_ = c.sim->last_report();
 }
 
-RunBody::RunBody(BuiltCase& c, int ranks, int rank) : c_(c), rank_(rank), ranks_(ranks) {
+RunBody::RunBody(BuiltCase& c, ProcessGrid grid, int rank)
+    : c_(c), rank_(rank), ranks_(grid.py * grid.pz) {
   double dt = c.sim ? c.sim->dt() : 0.0;
   broadcast_from_first(&dt, 1);
   dt_ = dt;
   const Lattice& whole = *c.lattice;
-  const Slab slab = make_slab(whole.nz(), ranks, rank);
-  Lattice local = window_lattice(slab, whole);
+  const Subdomain sub = make_subdomain(whole.ny(), whole.nz(), grid, rank);
+  Lattice local = window_lattice(sub, whole);
   // The window's material: the body's per-bar values of the same bars, the body's densities
-  // of the same modules (the window's modules are the body's from module plane w0 on).
+  // of the same modules.
   std::vector<index_t> global_bars(local.num_bars());
   for (index_t b = 0; b < local.num_bars(); ++b)
-    global_bars[b] = global_bar(slab, local, whole, b);
+    global_bars[b] = global_bar(sub, local, whole, b);
   BarFields fields;
   fields.E = window_values(c.fields.E, global_bars);
   fields.Gf = window_values(c.fields.Gf, global_bars);
   fields.e_p = window_values(c.fields.e_p, global_bars);
   fields.e_r = window_values(c.fields.e_r, global_bars);
   fields.R_f = window_values(c.fields.R_f, global_bars);
-  if (!c.fields.rho.empty()) {
-    const std::size_t first = std::size_t{whole.nx()} * whole.ny() * slab.w0;
-    fields.rho.assign(c.fields.rho.begin() + static_cast<std::ptrdiff_t>(first),
-                      c.fields.rho.begin() +
-                          static_cast<std::ptrdiff_t>(first + local.num_modules()));
-  }
+  if (!c.fields.rho.empty()) // module (i, j, k) at i + nx (j + ny k)
+    for (index_t k = sub.z.w0; k < sub.z.w1; ++k)
+      for (index_t j = sub.y.w0; j < sub.y.w1; ++j) {
+        const std::size_t first = whole.nx() * (j + std::size_t{whole.ny()} * k);
+        fields.rho.insert(fields.rho.end(),
+                          c.fields.rho.begin() + static_cast<std::ptrdiff_t>(first),
+                          c.fields.rho.begin() + static_cast<std::ptrdiff_t>(first + whole.nx()));
+      }
   BarTable table(local, c.spec.material, fields);
-  Conditions conditions = slab_conditions(slab, whole, local, c.conditions);
+  Conditions conditions = subdomain_conditions(sub, whole, local, c.conditions);
   std::vector<index_t> precracked;
   for (index_t b : c.precracked) {
     const BarAddress a = whole.bar_address(b);
-    if (a.k >= slab.w0 && a.k - slab.w0 < local.family(a.family).nk)
-      precracked.push_back(local.bar(a.family, a.i, a.j, a.k - slab.w0));
+    const FamilyInfo& fl = local.family(a.family);
+    if (a.j >= sub.y.w0 && a.j - sub.y.w0 < fl.nj && a.k >= sub.z.w0 && a.k - sub.z.w0 < fl.nk)
+      precracked.push_back(local.bar(a.family, a.i, a.j - sub.y.w0, a.k - sub.z.w0));
   }
   std::sort(precracked.begin(), precracked.end());
-  run_ = std::make_unique<SlabRun>(slab, std::move(local), std::move(table),
-                                   std::move(conditions), c.options, std::move(precracked));
+  run_ = std::make_unique<SubdomainRun>(sub, std::move(local), std::move(table),
+                                        std::move(conditions), c.options, std::move(precracked));
   run_->sim().set_time_step(dt_);
+  // The place of every process's energy rows in the body's order, found once: the rows of a
+  // report come in rank order, each process's in its own order.
+  EnergyRows rows;
+  run_->append_owned_row_keys(rows);
+  bar_order_ = key_order(gather_on_first(rows.bar_keys));
+  node_order_ = key_order(gather_on_first(rows.node_keys));
 }
 
 std::uint64_t RunBody::step_count() const {
@@ -137,13 +147,14 @@ std::vector<double> RunBody::serial_probes() const {
 
 namespace {
 
-bool owns_node(const Slab& slab, const Lattice& whole, index_t node) {
+int node_owner(const Subdomain& any, const Lattice& whole, index_t node) {
   const NodeAddress a = whole.node_address(node);
-  return slab.owns_plane(a.k, !a.centre);
+  return owner_rank(any, a.j, a.k);
 }
 
-bool owns_bar(const Slab& slab, const Lattice& whole, index_t bar) {
-  return slab.owns_plane(whole.bar_address(bar).k, true);
+int bar_owner(const Subdomain& any, const Lattice& whole, index_t bar) {
+  const BarAddress a = whole.bar_address(bar);
+  return owner_rank(any, a.j, a.k);
 }
 
 // Appends a list's length, then reserves it: returns the length's place, to be set.
@@ -158,46 +169,49 @@ void close_list(std::vector<double>& out, std::size_t at) {
 } // namespace
 
 void RunBody::append_probe_terms(std::vector<double>& out) const {
-  // Each slab evaluates what it owns: the probed bar, the set's nodes (in the set's order).
+  // Each process evaluates what it owns: the probed bar, the set's nodes (in the set's order).
   const Lattice& whole = lattice();
-  const Slab& slab = run_->slab();
+  const Subdomain& sub = run_->subdomain();
   const Simulation& sim = run_->sim();
   const std::size_t at = open_list(out);
   for (std::size_t i = 0; i < c_.spec.probes.size(); ++i) {
     const ProbeSpec& p = c_.spec.probes[i];
-    if (p.kind == ProbeSpec::Kind::BarForce && owns_bar(slab, whole, c_.probe_bars[i])) {
+    if (p.kind == ProbeSpec::Kind::BarForce &&
+        bar_owner(sub, whole, c_.probe_bars[i]) == sub.rank) {
       const BarAddress a = whole.bar_address(c_.probe_bars[i]);
-      out.push_back(sim.bar_force(sim.lattice().bar(a.family, a.i, a.j, a.k - slab.w0)));
+      out.push_back(
+          sim.bar_force(sim.lattice().bar(a.family, a.i, a.j - sub.y.w0, a.k - sub.z.w0)));
     } else if (p.kind == ProbeSpec::Kind::Reaction) {
       for (index_t n : set_named(c_.sets, p.set).nodes)
-        if (owns_node(slab, whole, n))
+        if (node_owner(sub, whole, n) == sub.rank)
           out.push_back(reaction_term(sim, run_->local_node(whole.node_address(n)), p.component));
     }
   }
   close_list(out, at);
 }
 
-void RunBody::append_energy_rows(std::vector<double>& out) const {
+void RunBody::append_energy_rows(std::vector<double>& out) {
   const Simulation& sim = run_->sim();
-  std::vector<double> rows[3];
-  run_->append_owned_energy_rows(rows[0], rows[1], rows[2]);
+  EnergyRows& rows = rows_;
+  for (auto* v : {&rows.elastic, &rows.damage, &rows.bar_keys, &rows.kinetic, &rows.node_keys})
+    v->clear();
+  run_->append_owned_energy_rows(rows);
   const EnergyReport& r = sim.last_report();
-  out.insert(out.end(), {r.external_work, r.damping_dissipated, sim.report_condition_kinetic(),
-                         static_cast<double>(rows[0].size()),
-                         static_cast<double>(rows[2].size())});
-  for (const auto& v : rows)
-    out.insert(out.end(), v.begin(), v.end());
+  out.insert(out.end(),
+             {r.external_work, r.damping_dissipated, sim.report_condition_kinetic(),
+              static_cast<double>(rows.elastic.size()), static_cast<double>(rows.kinetic.size())});
+  for (const auto* v : {&rows.elastic, &rows.damage, &rows.kinetic})
+    out.insert(out.end(), v->begin(), v->end());
 }
 
 void RunBody::append_events(std::vector<double>& out) {
-  const Slab& slab = run_->slab();
   const Lattice& local = run_->sim().lattice();
   const std::size_t at = open_list(out);
   for (const Event& e : run_->sim().take_events()) {
-    // Events of the ghost module's bars are their owner's to report.
-    if (!slab.owns_plane(local.bar_address(e.bar).k + slab.w0, true))
+    // Events of the ghost modules' bars are their owners' to report.
+    if (!run_->owns_bar(e.bar))
       continue;
-    out.push_back(global_bar(slab, local, lattice(), e.bar));
+    out.push_back(global_bar(run_->subdomain(), local, lattice(), e.bar));
     out.push_back(static_cast<double>(e.state));
     out.push_back(static_cast<double>(e.step));
   }
@@ -211,7 +225,8 @@ void RunBody::read_report(bool report) {
   const Lattice& whole = lattice();
   const auto& probes = c_.spec.probes;
   // Per process, in rank order: its probe terms, its sums and energy rows, its events. The
-  // rows of all processes in rank order are the body's rows in order.
+  // rows of all processes, in rank order, visited in bar_order_ and node_order_ are the
+  // body's rows in order.
   std::vector<const double*> probe_terms;
   std::vector<double> elastic_rows, damage_rows, kinetic_rows;
   double work = 0.0, damping = 0.0, kinetic = 0.0;
@@ -240,13 +255,10 @@ void RunBody::read_report(bool report) {
   }
   // From zero, row after row, as one process sums them (the kinetic energy after the
   // imposed-velocity DOF's, as there).
-  double elastic = 0.0, damage = 0.0;
-  for (double x : elastic_rows)
-    elastic += x;
-  for (double x : damage_rows)
-    damage += x;
-  for (double x : kinetic_rows)
-    kinetic += x;
+  const double elastic = sum_in_order(elastic_rows, bar_order_);
+  const double damage = sum_in_order(damage_rows, bar_order_);
+  for (std::size_t q : node_order_)
+    kinetic += kinetic_rows[q];
   const double t = run_->sim().last_report().time;
   if (t == 0.0)
     initial_ = elastic + kinetic;
@@ -257,21 +269,16 @@ void RunBody::read_report(bool report) {
     return;
   // Probes: the owner's bar force; a reaction's terms subtracted in the set's order, each
   // from the process that owns the node.
-  std::vector<Slab> slabs;
-  for (int r = 0; r < ranks_; ++r)
-    slabs.push_back(make_slab(whole.nz(), ranks_, r));
+  const Subdomain& sub = run_->subdomain();
   probes_.assign(probes.size(), 0.0);
   for (std::size_t i = 0; i < probes.size(); ++i) {
     const ProbeSpec& p = probes[i];
     if (p.kind == ProbeSpec::Kind::BarForce) {
-      for (std::size_t r = 0; r < slabs.size(); ++r)
-        if (owns_bar(slabs[r], whole, c_.probe_bars[i]))
-          probes_[i] = *probe_terms[r]++;
+      probes_[i] =
+          *probe_terms[static_cast<std::size_t>(bar_owner(sub, whole, c_.probe_bars[i]))]++;
     } else if (p.kind == ProbeSpec::Kind::Reaction) {
       for (index_t n : set_named(c_.sets, p.set).nodes)
-        for (std::size_t r = 0; r < slabs.size(); ++r)
-          if (owns_node(slabs[r], whole, n))
-            probes_[i] -= *probe_terms[r]++;
+        probes_[i] -= *probe_terms[static_cast<std::size_t>(node_owner(sub, whole, n))]++;
     } else {
       probes_[i] = load_probe(c_, p, t);
     }
@@ -317,9 +324,9 @@ Simulation* RunBody::whole(bool full) {
   std::vector<double>& mine = send_;
   mine.clear();
   for (bool previous : {false, true}) // u_{n-1} too: snapshots show velocities
-    for (const Span& s : slab_node_spans(run_->slab(), body, true))
+    for (const Span& s : subdomain_node_spans(run_->subdomain(), body, true))
       sim.append_displacements(s.local_first, s.count, mine, previous);
-  for (const Span& s : slab_bar_spans(run_->slab(), body, true))
+  for (const Span& s : subdomain_bar_spans(run_->subdomain(), body, true))
     sim.append_histories(s.local_first, s.count, mine);
   const std::array<double, 3> ledger = sim.ledger_state();
   mine.push_back(ledger[0]);
@@ -333,13 +340,13 @@ Simulation* RunBody::whole(bool full) {
   const double* in = received_.data();
   double work = 0.0, damping = 0.0;
   for (int r = 0; r < ranks_; ++r) {
-    const Slab slab = make_slab(body.nz(), ranks_, r);
+    const Subdomain sub = make_subdomain(body.ny(), body.nz(), run_->subdomain().grid, r);
     for (bool previous : {false, true})
-      for (const Span& s : slab_node_spans(slab, body, true)) {
+      for (const Span& s : subdomain_node_spans(sub, body, true)) {
         w.assign_displacements(s.global_first, s.count, in, previous);
         in += 3 * std::size_t{s.count};
       }
-    for (const Span& s : slab_bar_spans(slab, body, true)) {
+    for (const Span& s : subdomain_bar_spans(sub, body, true)) {
       w.assign_histories(s.global_first, s.count, in);
       in += s.count;
     }
@@ -370,12 +377,12 @@ void RunBody::spread_whole_state() {
   if (writes()) {
     const Simulation& w = *c_.sim;
     for (int r = 0; r < ranks_; ++r) {
-      const Slab slab = make_slab(body.nz(), ranks_, r);
+      const Subdomain sub = make_subdomain(body.ny(), body.nz(), run_->subdomain().grid, r);
       std::vector<double> part;
       for (bool previous : {false, true})
-        for (const Span& s : slab_node_spans(slab, body, false))
+        for (const Span& s : subdomain_node_spans(sub, body, false))
           w.append_displacements(s.global_first, s.count, part, previous);
-      for (const Span& s : slab_bar_spans(slab, body, false))
+      for (const Span& s : subdomain_bar_spans(sub, body, false))
         w.append_histories(s.global_first, s.count, part);
       parts.push_back(std::move(part));
     }
@@ -391,16 +398,16 @@ void RunBody::spread_whole_state() {
   Simulation& sim = run_->sim();
   const double* in = part.data();
   for (bool previous : {false, true})
-    for (const Span& s : slab_node_spans(run_->slab(), body, false)) {
+    for (const Span& s : subdomain_node_spans(run_->subdomain(), body, false)) {
       sim.assign_displacements(s.local_first, s.count, in, previous);
       in += 3 * std::size_t{s.count};
     }
-  for (const Span& s : slab_bar_spans(run_->slab(), body, false)) {
+  for (const Span& s : subdomain_bar_spans(run_->subdomain(), body, false)) {
     sim.assign_histories(s.local_first, s.count, in);
     in += s.count;
   }
   initial_ = progress[3];
-  // The body's accumulated work and damping go to the first slab; the others add from zero.
+  // The body's accumulated work and damping go to the first process; the others add from zero.
   const std::array<double, 3> ledger =
       writes() ? std::array<double, 3>{progress[1], progress[2], initial_}
                : std::array<double, 3>{0.0, 0.0, initial_};

@@ -1,21 +1,22 @@
-// The body a case run steps: the case's Simulation in one process, or one slab per process
-// of a distributed run (src/parallel/slab.hpp) with a copy of the whole body on the first
-// process that the outputs read.
+// The body a case run steps: the case's Simulation in one process, or one subdomain per
+// process of a distributed run (src/parallel/subdomain.hpp) with a copy of the whole body on
+// the first process that the outputs read.
 //
 // In a distributed run every member is collective: all processes call them in the same
 // order. What the outputs need comes to the first process:
-// - energies: each slab's owned rows gathered and summed in the body's row order (elastic,
-//   dissipated and the nodes' kinetic energy: the bits of one process); the external work,
-//   the damping dissipation and the kinetic energy of imposed-velocity DOF are summed per
-//   slab first, then over the slabs in rank order (the same to about 1e-15 relative);
-// - events of the bars each slab owns, in the body's numbers and (step, bar) order;
+// - energies: each process's owned rows gathered and summed in the body's row order
+//   (elastic, dissipated and the nodes' kinetic energy: the bits of one process); the
+//   external work, the damping dissipation and the kinetic energy of imposed-velocity DOF are
+//   summed per process first, then over the processes in rank order (the same to about 1e-15
+//   relative);
+// - events of the bars each process owns, in the body's numbers and (step, bar) order;
 // - probes: the owner's bar force, the reaction's per-node terms summed in the set's order;
 // - snapshots, checkpoints and the end summary: the owned nodes' displacements and owned
 //   bars' histories copied into the whole-body Simulation (`whole`).
 #pragma once
 
 #include "app/case_run.hpp"
-#include "parallel/slab.hpp"
+#include "parallel/subdomain.hpp"
 
 #include <array>
 #include <memory>
@@ -27,11 +28,13 @@ class RunBody {
 public:
   // One process: steps c.sim.
   explicit RunBody(BuiltCase& c);
-  // A slab of the case per process. c.sim is the whole body on the first process (its time
-  // step is every slab's) and empty elsewhere. Throws InputError when a slab cannot be built.
-  RunBody(BuiltCase& c, int ranks, int rank);
+  // A subdomain of the case per process. c.sim is the whole body on the first process (its
+  // time step is every subdomain's) and empty elsewhere. Throws InputError when a subdomain
+  // cannot be built.
+  RunBody(BuiltCase& c, ProcessGrid grid, int rank);
 
   bool distributed() const { return run_ != nullptr; }
+  ProcessGrid grid() const { return run_ ? run_->subdomain().grid : ProcessGrid{}; }
   // This process writes the outputs.
   bool writes() const { return rank_ == 0; }
   const Lattice& lattice() const { return *c_.lattice; }
@@ -39,7 +42,7 @@ public:
   std::uint64_t step_count() const;
   double time() const { return static_cast<double>(step_count()) * dt_; }
 
-  // One step (and, distributed, the exchange of ghost planes). With `report`, the probes at
+  // One step (and, distributed, the exchange of ghost nodes). With `report`, the probes at
   // the step's start and the energies; distributed, these and the step's events come to the
   // first process in one gather.
   void step(bool report);
@@ -61,28 +64,32 @@ public:
   // checkpoint saves). Called on every process; the first gets the Simulation, the others
   // nullptr.
   Simulation* whole(bool full);
-  // After c.sim (first process) has loaded a checkpoint: every slab takes its window's state
-  // from it.
+  // After c.sim (first process) has loaded a checkpoint: every subdomain takes its window's
+  // state from it.
   void spread_whole_state();
 
 private:
   // This process's part of a report: probe terms, energy rows and sums, events (each list
   // preceded by its length), and the first process's reading of all parts.
   void append_probe_terms(std::vector<double>& out) const;
-  void append_energy_rows(std::vector<double>& out) const;
+  void append_energy_rows(std::vector<double>& out);
   void append_events(std::vector<double>& out);
   void read_report(bool report); // from received_
   std::vector<double> serial_probes() const;
   BuiltCase& c_;
   int rank_ = 0, ranks_ = 1;
   double dt_ = 0.0;
-  std::unique_ptr<SlabRun> run_;
+  std::unique_ptr<SubdomainRun> run_;
+  EnergyRows rows_; // this process's rows of a report, kept from call to call
+  // The order of the body's bar and node rows among all processes' rows of a report, in
+  // rank order (first process).
+  std::vector<std::size_t> bar_order_, node_order_;
   std::vector<double> halo_[4];
   std::vector<double> send_, received_; // gathers' buffers, kept from call to call
   EnergyReport report_{};
   std::vector<double> probes_;
   std::vector<Event> events_; // gathered, not yet taken (first process)
-  double initial_ = 0.0; // the whole body's elastic + kinetic energy at t = 0
+  double initial_ = 0.0;      // the whole body's elastic + kinetic energy at t = 0
 };
 
 } // namespace ldem

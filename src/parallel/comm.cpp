@@ -11,15 +11,6 @@
 
 namespace ldem {
 
-namespace {
-double ordered_sum(const std::vector<double>& v) {
-  double sum = 0.0; // from zero, row after row, as one process sums them
-  for (double x : v)
-    sum += x;
-  return sum;
-}
-} // namespace
-
 #ifdef LDEM_HAVE_MPI
 
 namespace {
@@ -69,29 +60,34 @@ bool built_with_mpi() {
   return true;
 }
 
-void exchange_halos(SlabRun& run, std::vector<double> (&buf)[4]) {
+void exchange_halos(SubdomainRun& run, std::vector<double> (&buf)[4]) {
   if (!g_active)
     return;
-  const int rank = run.slab().rank;
-  MPI_Request req[4];
-  int n = 0;
-  // buf[0], buf[1]: received from below, above; buf[2], buf[3]: sent below, above.
-  for (int side = 0; side < 2; ++side) {
-    const int dir = side == 0 ? -1 : +1;
-    const std::size_t size = run.halo_size(dir);
-    if (size == 0)
-      continue;
-    buf[side].resize(size);
-    MPI_Irecv(buf[side].data(), static_cast<int>(size), MPI_DOUBLE, rank + dir, 0, MPI_COMM_WORLD,
-              &req[n++]);
-    run.pack(dir, buf[2 + side]);
-    MPI_Isend(buf[2 + side].data(), static_cast<int>(size), MPI_DOUBLE, rank + dir, 0,
-              MPI_COMM_WORLD, &req[n++]);
+  const Subdomain& sub = run.subdomain();
+  // Along y first (the owned planes' rows), then along z (whole window planes, with the ghost
+  // rows just received): the diagonal neighbours' nodes come through the second phase.
+  for (int axis : {1, 2}) {
+    MPI_Request req[4];
+    int n = 0;
+    // buf[0], buf[1]: received from below, above; buf[2], buf[3]: sent below, above.
+    for (int side = 0; side < 2; ++side) {
+      const int dir = side == 0 ? -1 : +1;
+      const std::size_t size = run.halo_size(axis, dir);
+      if (size == 0)
+        continue;
+      const int other = sub.neighbour(axis, dir);
+      buf[side].resize(size);
+      MPI_Irecv(buf[side].data(), static_cast<int>(size), MPI_DOUBLE, other, axis, MPI_COMM_WORLD,
+                &req[n++]);
+      run.pack(axis, dir, buf[2 + side]);
+      MPI_Isend(buf[2 + side].data(), static_cast<int>(size), MPI_DOUBLE, other, axis,
+                MPI_COMM_WORLD, &req[n++]);
+    }
+    MPI_Waitall(n, req, MPI_STATUSES_IGNORE);
+    for (int side = 0; side < 2; ++side)
+      if (run.halo_size(axis, side == 0 ? -1 : +1) > 0)
+        run.unpack(axis, side == 0 ? -1 : +1, buf[side]);
   }
-  MPI_Waitall(n, req, MPI_STATUSES_IGNORE);
-  for (int side = 0; side < 2; ++side)
-    if (run.halo_size(side == 0 ? -1 : +1) > 0)
-      run.unpack(side == 0 ? -1 : +1, buf[side]);
 }
 
 void gather_on_first(const std::vector<double>& mine, std::vector<double>& all) {
@@ -198,9 +194,9 @@ int process_count() {
 bool built_with_mpi() {
   return false;
 }
-void exchange_halos(SlabRun& run, std::vector<double> (&)[4]) {
-  if (run.slab().ranks > 1)
-    throw InputError("a slab of several ranks needs a build with MPI");
+void exchange_halos(SubdomainRun& run, std::vector<double> (&)[4]) {
+  if (run.subdomain().ranks > 1)
+    throw InputError("a subdomain of several ranks needs a build with MPI");
 }
 std::vector<double> gather_on_first(const std::vector<double>& mine) {
   return mine;
@@ -224,12 +220,15 @@ void barrier() {}
 
 #endif
 
-EnergySums gather_energies(const SlabRun& run) {
-  std::vector<double> rows[3];
-  run.append_owned_energy_rows(rows[0], rows[1], rows[2]);
-  double sums[3];
-  for (int q = 0; q < 3; ++q)
-    sums[q] = ordered_sum(gather_on_first(rows[q]));
+EnergySums gather_energies(const SubdomainRun& run) {
+  EnergyRows rows;
+  run.append_owned_energy_rows(rows);
+  const std::vector<double> bar_keys = gather_on_first(rows.bar_keys);
+  const std::vector<double> node_keys = gather_on_first(rows.node_keys);
+  const std::vector<std::size_t> bar_order = key_order(bar_keys), node_order = key_order(node_keys);
+  double sums[3] = {sum_in_order(gather_on_first(rows.elastic), bar_order),
+                    sum_in_order(gather_on_first(rows.damage), bar_order),
+                    sum_in_order(gather_on_first(rows.kinetic), node_order)};
   broadcast_from_first(sums, 3);
   return {sums[0], sums[1], sums[2]};
 }

@@ -3,7 +3,7 @@
 // function here is the identity.
 #pragma once
 
-#include "parallel/slab.hpp"
+#include "parallel/subdomain.hpp"
 
 #include <string>
 #include <vector>
@@ -24,17 +24,18 @@ int process_rank();
 int process_count();
 bool built_with_mpi();
 
-// Exchanges the ghost planes of a slab with the ranks below and above (non-blocking sends
-// and receives, then the unpacking); `buffers` holds four reusable vectors.
-void exchange_halos(SlabRun& run, std::vector<double> (&buffers)[4]);
+// Exchanges the ghost nodes of a subdomain with its neighbours, along y then along z
+// (non-blocking sends and receives, then the unpacking, per axis); `buffers` holds four
+// reusable vectors.
+void exchange_halos(SubdomainRun& run, std::vector<double> (&buffers)[4]);
 
 // The whole body's elastic, dissipated and kinetic energy of the last report step, from
-// every rank's owned rows summed in the body's row order: the numbers one process gives, bit
-// for bit. Every rank gets them.
+// every rank's owned rows summed in the body's row order (their keys): the numbers one
+// process gives, bit for bit. Every rank gets them.
 struct EnergySums {
   double elastic = 0.0, damage = 0.0, kinetic = 0.0;
 };
-EnergySums gather_energies(const SlabRun& run);
+EnergySums gather_energies(const SubdomainRun& run);
 
 // Every rank's `mine`, concatenated in rank order, on rank 0 (empty on the others); and
 // rank 0's values to every rank.

@@ -117,14 +117,16 @@ public:
   void step(bool report = false);
   const EnergyReport& last_report() const { return report_; }
   // The last report's energies row by row, for distributed runs that sum them across
-  // processes in the same order: elastic and dissipated energy per bar row (bar_row_plane:
-  // its block index k) and kinetic energy per node row (node_row: its place), in the order of
+  // processes in the same order: elastic and dissipated energy per bar row (its family and
+  // block indices j, k) and kinetic energy per node row (node_row: its place), in the order of
   // the step. The report's elastic, damage and kinetic energies are their sums in that order
   // (the kinetic energy plus that of imposed-velocity DOF).
   const std::vector<double>& report_bar_elastic() const { return energy_rows_u_; }
   const std::vector<double>& report_bar_damage() const { return energy_rows_d_; }
   const std::vector<double>& report_node_kinetic() const { return row_kinetic_; }
   index_t bar_row_plane(std::size_t r) const { return bar_rows_[r].k; }
+  index_t bar_row_line(std::size_t r) const { return bar_rows_[r].j; }
+  int bar_row_family(std::size_t r) const { return bar_rows_[r].family; }
   const NodeRow& node_row(std::size_t r) const { return node_rows_[r]; }
 
   // Events since the last call, in (step, bar) order.
@@ -139,8 +141,7 @@ public:
   // read). Likewise the histories of bars [first, first + count).
   void append_displacements(index_t first, index_t count, std::vector<double>& out,
                             bool previous = false) const;
-  void assign_displacements(index_t first, index_t count, const double* in,
-                            bool previous = false);
+  void assign_displacements(index_t first, index_t count, const double* in, bool previous = false);
   void append_histories(index_t first, index_t count, std::vector<double>& out) const;
   void assign_histories(index_t first, index_t count, const double* in);
   // After the displacements and histories are assigned: the step count, the energy

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Every shipped case (full length; the long fatigue plate only on its coarse lattice) run on one
 # process and under mpirun on 2, 3 and 4, each folder compared with the one-process folder by
-# tests/compare_runs.py. usage (from the source folder, after the release build):
+# tests/compare_runs.py; then two of them made 4 modules thick (with random fields on the
+# tutorial plate) on boxes over y and z: 2 x 1, 4 x 1, 3 x 1 and 2 x 2 processes.
+# usage (from the source folder, after the release build):
 #   bash docs/validation/distributed/run.sh [OUT_DIR]
 set -uo pipefail
 LDEM=${LDEM:-build/release/ldem}
@@ -21,6 +23,26 @@ for c in cases/tutorial/notched_plate.toml cases/fgm_plate/homogeneous.toml \
     mpirun -np "$np" --oversubscribe "$LDEM" run "$c" --out "$OUT/$n/$np" --no-plot --threads 1 \
       >/dev/null 2>&1
     /usr/bin/python3 tests/compare_runs.py "$OUT/$n/1" "$OUT/$n/$np" || fails=$((fails + 1))
+  done
+done
+# Thick plates: the notch or the pre-crack through the thickness; the tutorial plate with a
+# random modulus per bar and a correlated random density.
+sed -e 's/^modules = .*/modules = [40, 4, 20]/; s/^edge2 = .*/edge2 = [0.0, 0.022, 0.0]/' \
+  -e 's/^E = .*/E = { type = "weibull", mean = 35.0e9, cv = 0.1, seed = 3 }/' \
+  -e 's/^rho = .*/rho = { type = "weibull", mean = 2400.0, cv = 0.05, seed = 4, correlation_length = 0.01 }/' \
+  cases/tutorial/notched_plate.toml >"$OUT/thick_notched_plate.toml"
+sed -e 's/^modules = .*/modules = [60, 4, 60]/; s/^edge2 = .*/edge2 = [0.0, 2.2e-4, 0.0]/' \
+  cases/fgm_plate/graded_modulus_toughness.toml >"$OUT/thick_graded_modulus_toughness.toml"
+for n in thick_notched_plate thick_graded_modulus_toughness; do
+  rm -rf "${OUT:?}/$n"
+  start=$(date +%s.%N)
+  "$LDEM" run "$OUT/$n.toml" --out "$OUT/$n/1" --no-plot --threads 1 >/dev/null 2>&1
+  echo "$n: 1 process, $(printf '%.0f' "$(echo "$(date +%s.%N) - $start" | bc)") s"
+  for grid in "2 1" "4 1" "3 1" "2 2"; do
+    read -r py pz <<<"$grid"
+    mpirun -np $((py * pz)) --oversubscribe "$LDEM" run "$OUT/$n.toml" --out "$OUT/$n/${py}x$pz" \
+      --no-plot --threads 1 --process-grid "$py" "$pz" >/dev/null 2>&1
+    /usr/bin/python3 tests/compare_runs.py "$OUT/$n/1" "$OUT/$n/${py}x$pz" || fails=$((fails + 1))
   done
 done
 exit $fails

@@ -1,20 +1,20 @@
-// A small body strained until bars soften and break, stepped whole or as slabs: shared by
-// the in-process slab test (test_slab.cpp) and the MPI check (mpi_check.cpp).
+// A small body strained until bars soften and break, stepped whole or as subdomains: shared by
+// the in-process test (test_subdomain.cpp) and the MPI check (mpi_check.cpp).
 #pragma once
 
 #include "helpers.hpp"
-#include "parallel/slab.hpp"
+#include "parallel/subdomain.hpp"
 
 #include <random>
 
 namespace ldem::testing {
 
-struct SlabScenario {
+struct SubdomainScenario {
   static constexpr index_t nx = 5, ny = 4, nz = 7;
   static constexpr int steps = 300;
   // e_p = 1e-3, random displacements of 1e-3 L and velocities of 1e-4 c: strains of a few
   // 1e-3, so that some bars soften and about a tenth break during the run, on both sides of
-  // the slab boundaries.
+  // the subdomains' boundaries.
   static MaterialSpec material() { return unit_material(1e-3, 3.0); }
 
   // Random displacement or velocity of node (i, j, k), the same draw in every process.
@@ -60,38 +60,36 @@ struct SlabScenario {
     return sim;
   }
 
-  // Rank `rank` of `ranks`, with the whole body's time step `dt`, started.
-  static SlabRun slab(int ranks, int rank, double dt, bool loaded = false) {
-    const Slab s = make_slab(nz, ranks, rank);
+  // The grids of `ranks` processes that fit the body (Py <= ny, Pz <= nz).
+  static std::vector<ProcessGrid> grids(int ranks) {
+    std::vector<ProcessGrid> out;
+    for (int py = 1; py <= ranks; ++py)
+      if (ranks % py == 0 && py <= int{ny} && ranks / py <= int{nz})
+        out.push_back({py, ranks / py});
+    return out;
+  }
+
+  // Rank `rank` of a grid of processes, with the whole body's time step `dt`, started.
+  static SubdomainRun subdomain(ProcessGrid grid, int rank, double dt, bool loaded = false) {
+    const Subdomain s = make_subdomain(ny, nz, grid, rank);
     const Lattice whole(nx, ny, nz, 1.0);
-    Lattice local(nx, ny, s.local_nz(), 1.0);
+    Lattice local = window_lattice(s, whole);
     BarTable table(local, material());
     SolverOptions given = options(loaded);
     given.step.rule = TimeStep::Rule::Given;
     given.step.dt = dt;
-    Conditions c = slab_conditions(s, whole, local, conditions(whole, loaded));
-    SlabRun run(s, std::move(local), std::move(table), std::move(c), given);
+    Conditions c = subdomain_conditions(s, whole, local, conditions(whole, loaded));
+    SubdomainRun run(s, std::move(local), std::move(table), std::move(c), given);
     for (index_t n = 0; n < run.sim().lattice().num_nodes(); ++n)
       start(run.sim(), n, run.global_address(n));
     return run;
   }
 
-  // Sum in order, from zero, as the whole body's report does.
-  static double ordered_sum(const std::vector<double>& v) {
-    double sum = 0.0;
-    for (double x : v)
-      sum += x;
-    return sum;
-  }
-
-  // Whether bar `b` of the slab's window lies in a bar plane the slab owns, and its number in
-  // the whole body (lattice `whole`).
-  static bool owned_bar(const SlabRun& run, const Lattice& whole, index_t b, index_t& global) {
-    const BarAddress a = run.sim().lattice().bar_address(b);
-    const Slab& s = run.slab();
-    const index_t k = a.k + s.w0;
-    global = whole.bar(a.family, a.i, a.j, k);
-    return s.owns_plane(k, true);
+  // Whether bar `b` of the subdomain's window is one it owns, and its number in the whole
+  // body (lattice `whole`).
+  static bool owned_bar(const SubdomainRun& run, const Lattice& whole, index_t b, index_t& global) {
+    global = global_bar(run.subdomain(), run.sim().lattice(), whole, b);
+    return run.owns_bar(b);
   }
 };
 
