@@ -76,6 +76,43 @@ TEST(Weibull, SameSeedSameFieldWhateverTheThreads) {
   EXPECT_NE(evaluate_field(f, lat), a);
 }
 
+// A distributed run evaluates the fields at its window's bars and modules only: each takes the
+// value it has in the whole body's evaluation, bit for bit (draws by the body's numbers,
+// correlated fields from the body's one grid, gradings at the same centres), for a subset in
+// any order.
+TEST(Field, SomeBarsOrModulesTakeTheWholeBodysValues) {
+  const Lattice lat(7, 5, 6, 0.01);
+  std::vector<Field> fields(3);
+  fields[0].kind = Field::Kind::Weibull;
+  fields[0].mean = 100.0;
+  fields[0].cv = 0.2;
+  fields[0].seed = 3;
+  fields[1] = fields[0];
+  fields[1].correlation_length = 0.03;
+  fields[2].kind = Field::Kind::Linear;
+  fields[2].axis = 1;
+  fields[2].table = {{0.0, 1.0}, {0.05, 2.0}};
+  std::vector<index_t> bars, modules;
+  for (index_t b = lat.num_bars(); b-- > 0;) // every third bar, backwards
+    if (b % 3 == 1)
+      bars.push_back(b);
+  for (index_t m = 5; m < lat.num_modules(); m += 7)
+    modules.push_back(m);
+  for (const Field& f : fields) {
+    SCOPED_TRACE(describe_field(f));
+    const std::vector<double> all = evaluate_field(f, lat), some = evaluate_field(f, lat, bars);
+    ASSERT_EQ(some.size(), bars.size());
+    for (std::size_t q = 0; q < bars.size(); ++q)
+      ASSERT_EQ(some[q], all[bars[q]]) << "bar " << bars[q];
+    const std::vector<double> all_m = evaluate_field_modules(f, lat),
+                              some_m = evaluate_field_modules(f, lat, modules);
+    ASSERT_EQ(some_m.size(), modules.size());
+    for (std::size_t q = 0; q < modules.size(); ++q)
+      ASSERT_EQ(some_m[q], all_m[modules[q]]) << "module " << modules[q];
+    EXPECT_NE(all.front(), all.back()); // the field varies
+  }
+}
+
 // A linear grading is reproduced exactly at every bar centre: v = v0 + (v1 - v0) (z - z0) /
 // (z1 - z0) (the paper's graded e_p: 0.0125 at the bottom to 0.0375 at the top).
 TEST(Field, LinearGradingAtBarCentres) {

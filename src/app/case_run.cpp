@@ -136,14 +136,18 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
         {&s.fields.R_f, &fields.R_f}};
     const char* names[] = {"material.E", "material.Gf", "material.e_p", "material.e_r",
                            "material.R_f"};
+    // Evaluated over the whole body only where it is built: a distributed run's other
+    // processes evaluate their windows (RunBody).
     for (int i = 0; i < 5; ++i)
       if (const auto& f = *props[i].first) {
         validate_field(*f, lat, names[i]);
-        *props[i].second = evaluate_field(*f, lat);
+        if (with_simulation)
+          *props[i].second = evaluate_field(*f, lat);
       }
     if (s.fields.rho) {
       validate_field(*s.fields.rho, lat, "material.rho");
-      fields.rho = evaluate_field_modules(*s.fields.rho, lat);
+      if (with_simulation)
+        fields.rho = evaluate_field_modules(*s.fields.rho, lat);
     }
     c.lattice = lat;
     c.conditions = cond;
@@ -155,7 +159,6 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       c.sim = std::make_unique<Simulation>(std::move(lat), std::move(table), std::move(cond),
                                            c.options, c.precracked);
     }
-    c.fields = std::move(fields);
   } catch (const InputError& e) {
     throw InputError(fmt::format("{}: {}", path, e.what()));
   }
@@ -952,10 +955,8 @@ int guarded_loop(const std::function<int()>& loop) {
 // The body of a run: the case's Simulation, or with several processes a subdomain on each (the
 // processes agree on whether it could be built).
 std::unique_ptr<RunBody> make_body(BuiltCase& c, ProcessGrid asked) {
-  if (process_count() == 1) {
-    c.fields = {}; // only subdomains need the per-bar fields again
+  if (process_count() == 1)
     return std::make_unique<RunBody>(c);
-  }
   std::unique_ptr<RunBody> body;
   if (!agreed([&] {
         const ProcessGrid grid =
@@ -963,7 +964,6 @@ std::unique_ptr<RunBody> make_body(BuiltCase& c, ProcessGrid asked) {
         body = std::make_unique<RunBody>(c, grid, process_rank());
       }))
     return nullptr;
-  c.fields = {};
   return body;
 }
 

@@ -23,10 +23,10 @@ struct BuiltCase {
   std::vector<index_t> probe_bars; // per probe: the bar of a bar_force probe
   std::vector<std::string> warnings;
   // What the simulation was built from, for runs that build it again in subdomains: the body's
-  // lattice, its conditions, the per-bar fields (empty when uniform) and the solver options.
+  // lattice, its conditions and the solver options (the material fields are evaluated again
+  // per subdomain, from spec).
   std::optional<Lattice> lattice;
   Conditions conditions;
-  BarFields fields;
   SolverOptions options;
 };
 

@@ -1,5 +1,6 @@
 #include "app/run_body.hpp"
 
+#include "material/field.hpp"
 #include "parallel/comm.hpp"
 #include "util/error.hpp"
 
@@ -34,18 +35,6 @@ double reaction_term(const Simulation& sim, index_t node, int component) {
   return component == 0 ? f.x + l.x : component == 1 ? f.y + l.y : f.z + l.z;
 }
 
-// A per-bar field of the body restricted to the window's bars (empty stays empty).
-std::vector<double> window_values(const std::vector<double>& whole,
-                                  const std::vector<index_t>& global_bars) {
-  std::vector<double> v;
-  if (whole.empty())
-    return v;
-  v.reserve(global_bars.size());
-  for (index_t b : global_bars)
-    v.push_back(whole[b]);
-  return v;
-}
-
 } // namespace
 
 RunBody::RunBody(BuiltCase& c) : c_(c), dt_(c.sim->dt()) {
@@ -60,25 +49,35 @@ RunBody::RunBody(BuiltCase& c, ProcessGrid grid, int rank)
   const Lattice& whole = *c.lattice;
   const Subdomain sub = make_subdomain(whole.ny(), whole.nz(), grid, rank);
   Lattice local = window_lattice(sub, whole);
-  // The window's material: the body's per-bar values of the same bars, the body's densities
-  // of the same modules.
-  std::vector<index_t> global_bars(local.num_bars());
-  for (index_t b = 0; b < local.num_bars(); ++b)
-    global_bars[b] = global_bar(sub, local, whole, b);
+  // The window's material: the body's fields evaluated at the window's bars and modules
+  // (random draws by the body's numbers, correlated fields from the body's one grid), the
+  // values the whole body has there.
+  const CaseSpec::Fields& given = c.spec.fields;
   BarFields fields;
-  fields.E = window_values(c.fields.E, global_bars);
-  fields.Gf = window_values(c.fields.Gf, global_bars);
-  fields.e_p = window_values(c.fields.e_p, global_bars);
-  fields.e_r = window_values(c.fields.e_r, global_bars);
-  fields.R_f = window_values(c.fields.R_f, global_bars);
-  if (!c.fields.rho.empty()) // module (i, j, k) at i + nx (j + ny k)
+  std::vector<index_t> global_bars;
+  if (given.E || given.Gf || given.e_p || given.e_r || given.R_f) {
+    global_bars.resize(local.num_bars());
+    for (index_t b = 0; b < local.num_bars(); ++b)
+      global_bars[b] = global_bar(sub, local, whole, b);
+  }
+  const std::pair<const std::optional<Field>*, std::vector<double>*> props[] = {
+      {&given.E, &fields.E},
+      {&given.Gf, &fields.Gf},
+      {&given.e_p, &fields.e_p},
+      {&given.e_r, &fields.e_r},
+      {&given.R_f, &fields.R_f}};
+  for (const auto& [field, values] : props)
+    if (*field)
+      *values = evaluate_field(**field, whole, global_bars);
+  if (given.rho) { // the window's modules (i, j, k), numbered i + nx (j + ny k) in the body
+    std::vector<index_t> modules;
+    modules.reserve(local.num_modules());
     for (index_t k = sub.z.w0; k < sub.z.w1; ++k)
-      for (index_t j = sub.y.w0; j < sub.y.w1; ++j) {
-        const std::size_t first = whole.nx() * (j + std::size_t{whole.ny()} * k);
-        fields.rho.insert(fields.rho.end(),
-                          c.fields.rho.begin() + static_cast<std::ptrdiff_t>(first),
-                          c.fields.rho.begin() + static_cast<std::ptrdiff_t>(first + whole.nx()));
-      }
+      for (index_t j = sub.y.w0; j < sub.y.w1; ++j)
+        for (index_t i = 0; i < whole.nx(); ++i)
+          modules.push_back(i + whole.nx() * (j + whole.ny() * k));
+    fields.rho = evaluate_field_modules(*given.rho, whole, modules);
+  }
   BarTable table(local, c.spec.material, fields);
   Conditions conditions = subdomain_conditions(sub, whole, local, c.conditions);
   std::vector<index_t> precracked;

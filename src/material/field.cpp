@@ -101,10 +101,10 @@ void validate_field(const Field& f, const Lattice& lat, const std::string& what)
 
 namespace {
 
-// The field at n points: position(i) gives point i, and i numbers the random draws.
-template <class Position>
+// The field at n points: position(i) gives point i, and id(i) numbers its random draw.
+template <class Position, class Id>
 std::vector<double> evaluate_at(const Field& f, const Lattice& lat, index_t nb, Position&& position,
-                                std::uint64_t stream) {
+                                Id&& id, std::uint64_t stream) {
   std::vector<double> v(nb, f.value);
   if (f.kind == Field::Kind::Linear || f.kind == Field::Kind::Table) {
     const auto& t = f.table;
@@ -137,7 +137,7 @@ std::vector<double> evaluate_at(const Field& f, const Lattice& lat, index_t nb, 
     const double g = weibull_shape(f.cv), scale = weibull_scale(f.mean, g);
 #pragma omp parallel for schedule(static) if (nb > 20000)
     for (std::int64_t b = 0; b < static_cast<std::int64_t>(nb); ++b) {
-      const double u = counter_uniform(f.seed ^ stream, static_cast<std::uint64_t>(b));
+      const double u = counter_uniform(f.seed ^ stream, id(static_cast<index_t>(b)));
       v[static_cast<std::size_t>(b)] = scale * std::pow(-std::log1p(-u), 1.0 / g);
     }
   }
@@ -146,16 +146,39 @@ std::vector<double> evaluate_at(const Field& f, const Lattice& lat, index_t nb, 
 
 } // namespace
 
+namespace {
+// Module draws use their own stream, so that a density field is not the toughness field.
+constexpr std::uint64_t kModuleStream = 0x5DEECE66Dull;
+std::uint64_t same(index_t b) {
+  return b;
+}
+} // namespace
+
 std::vector<double> evaluate_field(const Field& f, const Lattice& lat) {
   return evaluate_at(
-      f, lat, lat.num_bars(), [&](index_t b) { return lat.bar_centre(b); }, 0);
+      f, lat, lat.num_bars(), [&](index_t b) { return lat.bar_centre(b); }, same, 0);
+}
+
+std::vector<double> evaluate_field(const Field& f, const Lattice& lat,
+                                   const std::vector<index_t>& bars) {
+  return evaluate_at(
+      f, lat, static_cast<index_t>(bars.size()), [&](index_t q) { return lat.bar_centre(bars[q]); },
+      [&](index_t q) { return bars[q]; }, 0);
 }
 
 std::vector<double> evaluate_field_modules(const Field& f, const Lattice& lat) {
   const auto nm = static_cast<index_t>(lat.num_modules());
-  // Module draws use their own stream, so that a density field is not the toughness field.
   return evaluate_at(
-      f, lat, nm, [&](index_t m) { return lat.position(lat.num_corners() + m); }, 0x5DEECE66Dull);
+      f, lat, nm, [&](index_t m) { return lat.position(lat.num_corners() + m); }, same,
+      kModuleStream);
+}
+
+std::vector<double> evaluate_field_modules(const Field& f, const Lattice& lat,
+                                           const std::vector<index_t>& modules) {
+  return evaluate_at(
+      f, lat, static_cast<index_t>(modules.size()),
+      [&](index_t q) { return lat.position(lat.num_corners() + modules[q]); },
+      [&](index_t q) { return modules[q]; }, kModuleStream);
 }
 
 std::vector<double> correlated_gaussian(const Lattice& lat, const std::vector<Vec3>& points,

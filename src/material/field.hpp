@@ -40,6 +40,12 @@ void validate_field(const Field& f, const Lattice& lattice, const std::string& w
 std::vector<double> evaluate_field(const Field& f, const Lattice& lattice);
 // The field's value for every module (at its centre): densities, for the lumped masses.
 std::vector<double> evaluate_field_modules(const Field& f, const Lattice& lattice);
+// The same values for some bars or modules only (their numbers in `lattice`, in that order):
+// a distributed run's window, which need not evaluate the whole body.
+std::vector<double> evaluate_field(const Field& f, const Lattice& lattice,
+                                   const std::vector<index_t>& bars);
+std::vector<double> evaluate_field_modules(const Field& f, const Lattice& lattice,
+                                           const std::vector<index_t>& modules);
 
 // Weibull shape g from the coefficient of variation: CV^2 = G(1 + 2/g) / G(1 + 1/g)^2 - 1.
 // Throws InputError when no shape gives that CV (CV <= 0 or above the g -> 0 limit used).
