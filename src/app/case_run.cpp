@@ -740,9 +740,8 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
 
   // The snapshot writer prepares what does not change during the run (connectivity, fields)
   // here, with the rest of the set-up, so that the loop's timing holds only per-step work.
-  std::unique_ptr<LatticeVtuWriter> vtu_writer;
-  if (s.output.vtu && writes)
-    vtu_writer = std::make_unique<LatticeVtuWriter>(*c.sim);
+  if (s.output.vtu)
+    body.prepare_snapshots();
   std::unique_ptr<Progress> progress;
   if (writes)
     progress = std::make_unique<Progress>(steps);
@@ -806,10 +805,12 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
     }
     const bool report = n % every == 0 || n == steps;
     if (s.output.vtu && (n % vtu_every == 0 || n == steps)) {
-      const Simulation* whole = body.whole(false);
+      // (The first process keeps the list of snapshots: it names the file.)
+      std::string name = fmt::format("lattice_{:06d}.vtu", st.snapshots.size());
+      if (body.distributed())
+        broadcast_from_first(name);
+      body.write_snapshot(dir + name);
       if (writes) {
-        const std::string name = fmt::format("lattice_{:06d}.vtu", st.snapshots.size());
-        vtu_writer->write(*whole, dir + name);
         st.snapshots.emplace_back(body.time(), name);
         write_file(dir + "lattice.pvd", lattice_pvd(st.snapshots));
       }

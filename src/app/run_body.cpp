@@ -367,6 +367,22 @@ Simulation* RunBody::whole(bool full) {
   return &w;
 }
 
+void RunBody::prepare_snapshots() {
+  if (run_)
+    subdomain_vtu_ = std::make_unique<SubdomainVtuWriter>(*run_, lattice());
+  else
+    vtu_ = std::make_unique<LatticeVtuWriter>(*c_.sim);
+}
+
+void RunBody::write_snapshot(const std::string& path) {
+  if (!vtu_ && !subdomain_vtu_)
+    prepare_snapshots();
+  if (run_)
+    subdomain_vtu_->write(*run_, path);
+  else
+    vtu_->write(*c_.sim, path);
+}
+
 void RunBody::spread_whole_state() {
   if (!run_)
     return;

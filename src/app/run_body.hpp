@@ -16,6 +16,8 @@
 #pragma once
 
 #include "app/case_run.hpp"
+#include "io/output.hpp"
+#include "parallel/snapshot.hpp"
 #include "parallel/subdomain.hpp"
 
 #include <array>
@@ -64,6 +66,12 @@ public:
   // checkpoint saves). Called on every process; the first gets the Simulation, the others
   // nullptr.
   Simulation* whole(bool full);
+  // VTU snapshots: prepare_snapshots() makes the writer (what does not change during the run),
+  // write_snapshot() writes the current state at `path` (the same bytes whatever the number of
+  // processes; distributed, every process writes its part of the file). Collective.
+  void prepare_snapshots();
+  void write_snapshot(const std::string& path);
+
   // After c.sim (first process) has loaded a checkpoint: every subdomain takes its window's
   // state from it.
   void spread_whole_state();
@@ -80,6 +88,8 @@ private:
   int rank_ = 0, ranks_ = 1;
   double dt_ = 0.0;
   std::unique_ptr<SubdomainRun> run_;
+  std::unique_ptr<LatticeVtuWriter> vtu_;             // one process
+  std::unique_ptr<SubdomainVtuWriter> subdomain_vtu_; // distributed
   EnergyRows rows_; // this process's rows of a report, kept from call to call
   // The order of the body's bar and node rows among all processes' rows of a report, in
   // rank order (first process).

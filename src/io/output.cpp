@@ -75,6 +75,52 @@ std::vector<float> to_float(const std::vector<double>& v) {
 
 } // namespace
 
+VtuLayout vtu_layout(index_t nn, index_t nb, bool fields) {
+  VtuLayout l;
+  std::string s = "<?xml version=\"1.0\"?>\n"
+                  "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
+                  "header_type=\"UInt64\">\n<UnstructuredGrid>\n";
+  s += fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", nn, nb);
+  std::uint64_t offset = 0; // in the appended data
+  auto tag = [&](VtuLayout::Array a, const char* type, const char* name, int components,
+                 std::uint64_t bytes) {
+    s += fmt::format("<DataArray type=\"{}\" Name=\"{}\" NumberOfComponents=\"{}\" "
+                     "format=\"appended\" offset=\"{}\"/>\n",
+                     type, name, components, offset);
+    l.present[a] = true;
+    l.at[a] = offset; // made a file position below, once the header's length is known
+    l.bytes[a] = bytes;
+    offset += sizeof(std::uint64_t) + bytes;
+  };
+  const std::uint64_t fn = 4ull * nn, fb = 4ull * nb;
+  s += "<PointData Vectors=\"displacement\">\n";
+  tag(VtuLayout::Displacement, "Float32", "displacement", 3, 3 * fn);
+  tag(VtuLayout::Velocity, "Float32", "velocity", 3, 3 * fn);
+  s += "</PointData>\n<CellData Scalars=\"damage\">\n";
+  tag(VtuLayout::Damage, "Float32", "damage", 1, fb);
+  tag(VtuLayout::State, "UInt8", "state", 1, nb);
+  tag(VtuLayout::Force, "Float32", "axial_force", 1, fb);
+  if (fields) {
+    tag(VtuLayout::E, "Float32", "E", 1, fb);
+    tag(VtuLayout::Gf, "Float32", "Gf", 1, fb);
+    tag(VtuLayout::EP, "Float32", "e_p", 1, fb);
+    tag(VtuLayout::ER, "Float32", "e_r", 1, fb);
+  }
+  s += "</CellData>\n<Points>\n";
+  tag(VtuLayout::Points, "Float32", "Points", 3, 3 * fn);
+  s += "</Points>\n<Cells>\n";
+  tag(VtuLayout::Connectivity, "Int32", "connectivity", 1, 2 * fb);
+  tag(VtuLayout::Offsets, "Int32", "offsets", 1, fb);
+  tag(VtuLayout::Types, "UInt8", "types", 1, nb);
+  s += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
+  for (int a = 0; a < VtuLayout::kArrays; ++a)
+    if (l.present[a])
+      l.at[a] += s.size();
+  l.size = s.size() + offset + std::char_traits<char>::length(VtuLayout::trailer);
+  l.header = std::move(s);
+  return l;
+}
+
 LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
   const Lattice& lat = sim.lattice();
   const index_t nn = lat.num_nodes(), nb = lat.num_bars();
@@ -106,33 +152,14 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
 
   // The per-snapshot arrays come first in the appended data; their sizes are fixed, so every
   // offset, and the whole XML header, is known now.
-  std::uint64_t offset = 0;
-  auto tag = [&](const char* type, const char* name, int components, std::uint64_t bytes) {
-    const std::string t =
-        fmt::format("<DataArray type=\"{}\" Name=\"{}\" NumberOfComponents=\"{}\" "
-                    "format=\"appended\" offset=\"{}\"/>\n",
-                    type, name, components, offset);
-    offset += sizeof(std::uint64_t) + bytes;
-    return t;
-  };
   auto add_static = [&](const void* data, std::uint64_t bytes) {
     const auto* p = reinterpret_cast<const char*>(&bytes);
     static_block_.insert(static_block_.end(), p, p + sizeof bytes);
     const auto* q = static_cast<const char*>(data);
     static_block_.insert(static_block_.end(), q, q + bytes);
   };
-  const std::uint64_t fn = 4ull * nn, fb = 4ull * nb;
-  std::string s = "<?xml version=\"1.0\"?>\n"
-                  "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
-                  "header_type=\"UInt64\">\n<UnstructuredGrid>\n";
-  s += fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", nn, nb);
-  s += "<PointData Vectors=\"displacement\">\n";
-  s += tag("Float32", "displacement", 3, 3 * fn);
-  s += tag("Float32", "velocity", 3, 3 * fn);
-  s += "</PointData>\n<CellData Scalars=\"damage\">\n";
-  s += tag("Float32", "damage", 1, fb);
-  s += tag("UInt8", "state", 1, nb);
-  s += tag("Float32", "axial_force", 1, fb);
+  const std::uint64_t fb = 4ull * nb;
+  const VtuLayout layout = vtu_layout(nn, nb, sim.table().per_bar());
   if (sim.table().per_bar()) {
     // The material fields per bar: E, Gf (its fracture energy per fracture area, eq. 11),
     // e_p and e_r.
@@ -144,27 +171,16 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
     }
     const std::vector<float> e_p = to_float(sim.table().e_p_bar()),
                              e_r = to_float(sim.table().e_r_bar());
-    s += tag("Float32", "E", 1, fb);
     add_static(E.data(), fb);
-    s += tag("Float32", "Gf", 1, fb);
     add_static(Gf.data(), fb);
-    s += tag("Float32", "e_p", 1, fb);
     add_static(e_p.data(), fb);
-    s += tag("Float32", "e_r", 1, fb);
     add_static(e_r.data(), fb);
   }
-  s += "</CellData>\n<Points>\n";
-  s += tag("Float32", "Points", 3, 3 * fn);
-  add_static(points.data(), 3 * fn);
-  s += "</Points>\n<Cells>\n";
-  s += tag("Int32", "connectivity", 1, 2 * fb);
+  add_static(points.data(), 3 * 4ull * nn);
   add_static(conn.data(), 2 * fb);
-  s += tag("Int32", "offsets", 1, fb);
   add_static(offsets.data(), fb);
-  s += tag("UInt8", "types", 1, nb);
   add_static(types.data(), nb);
-  s += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
-  header_ = std::move(s);
+  header_ = layout.header;
   // Every buffer a snapshot fills, sized (and its pages touched) now, not at the first snapshot.
   disp_.resize(3 * std::size_t{nn});
   vel_.resize(3 * std::size_t{nn});
@@ -209,7 +225,7 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   block(state_.data(), state_.size());
   block(force_f_.data(), force_f_.size() * sizeof(float));
   out.write(static_block_.data(), static_block_.size());
-  out.write("\n</AppendedData>\n</VTKFile>\n");
+  out.write(VtuLayout::trailer);
   out.commit();
 }
 

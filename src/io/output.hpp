@@ -44,6 +44,40 @@ void write_file(const std::string& path, const std::string& text);
 // vary, E, Gf, e_p, e_r. Raw binary appended data, values in single precision.
 void write_lattice_vtu(const Simulation& sim, const std::string& path);
 
+// Where each array of such a file lies: the XML header (which ends where the appended data
+// begins), then each array as a 64-bit byte count and its values, then the trailer. Every
+// size follows from the node and bar counts, so a file can also be written piece by piece at
+// these positions (distributed runs: src/parallel/snapshot.hpp).
+struct VtuLayout {
+  enum Array {
+    Displacement, // Float32 x 3 per node
+    Velocity,     // Float32 x 3 per node
+    Damage,       // Float32 per bar
+    State,        // UInt8 per bar
+    Force,        // Float32 per bar
+    E,            // Float32 per bar, the four fields only where they vary
+    Gf,
+    EP,
+    ER,
+    Points,       // Float32 x 3 per node
+    Connectivity, // Int32 x 2 per bar
+    Offsets,      // Int32 per bar
+    Types,        // UInt8 per bar
+    kArrays
+  };
+  std::string header;
+  bool present[kArrays] = {};
+  std::uint64_t at[kArrays] = {};    // file position of the array's byte count
+  std::uint64_t bytes[kArrays] = {}; // the count
+  std::uint64_t size = 0;            // of the whole file
+  static constexpr const char* trailer = "\n</AppendedData>\n</VTKFile>\n";
+  // The position of the first byte of value `index` of an array of `width`-byte values.
+  std::uint64_t value_at(Array a, std::uint64_t index, std::uint64_t width) const {
+    return at[a] + sizeof(std::uint64_t) + index * width;
+  }
+};
+VtuLayout vtu_layout(index_t nodes, index_t bars, bool fields);
+
 // The same for a series of snapshots of one run: what does not change (reference positions,
 // connectivity, material fields, the XML header with every offset) is prepared once, so a
 // snapshot only converts and writes the displacements, velocities and bar values.

@@ -2,8 +2,12 @@
 
 #include "util/error.hpp"
 
+#include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <fmt/format.h>
 
 #ifdef LDEM_HAVE_MPI
 #include <mpi.h>
@@ -159,6 +163,45 @@ void abort_processes(int code) {
   }
 }
 
+SharedFile::SharedFile(const std::string& path) : path_(path), part_(path + ".part") {
+  MPI_File fh = MPI_FILE_NULL;
+  if (MPI_File_open(MPI_COMM_WORLD, part_.c_str(), MPI_MODE_CREATE | MPI_MODE_WRONLY, MPI_INFO_NULL,
+                    &fh) != MPI_SUCCESS)
+    throw InputError(fmt::format("{}: cannot write", part_));
+  MPI_File_set_size(fh, 0); // a stale part of an earlier run goes
+  handle_ = new MPI_File(fh);
+}
+
+SharedFile::~SharedFile() {
+  if (handle_) {
+    MPI_File_close(static_cast<MPI_File*>(handle_));
+    delete static_cast<MPI_File*>(handle_);
+  }
+}
+
+void SharedFile::write_at(std::uint64_t position, const void* data, std::size_t bytes) {
+  const auto* p = static_cast<const char*>(data);
+  while (bytes > 0) { // MPI counts are int
+    const std::size_t n = std::min<std::size_t>(bytes, std::size_t{1} << 30);
+    if (MPI_File_write_at(*static_cast<MPI_File*>(handle_), static_cast<MPI_Offset>(position), p,
+                          static_cast<int>(n), MPI_BYTE, MPI_STATUS_IGNORE) != MPI_SUCCESS)
+      throw InputError(fmt::format("{}: write failed", part_));
+    p += n;
+    position += n;
+    bytes -= n;
+  }
+}
+
+void SharedFile::commit() {
+  if (!handle_)
+    return;
+  MPI_File_close(static_cast<MPI_File*>(handle_));
+  delete static_cast<MPI_File*>(handle_);
+  handle_ = nullptr;
+  if (process_rank() == 0)
+    std::rename(part_.c_str(), path_.c_str());
+}
+
 namespace {
 double reduce(double x, MPI_Op op) {
   double y = x;
@@ -182,6 +225,30 @@ void barrier() {
 }
 
 #else
+
+SharedFile::SharedFile(const std::string& path) : path_(path), part_(path + ".part") {
+  std::FILE* f = std::fopen(part_.c_str(), "wb");
+  if (!f)
+    throw InputError(fmt::format("{}: cannot write ({})", part_, std::strerror(errno)));
+  handle_ = f;
+}
+SharedFile::~SharedFile() {
+  if (handle_)
+    std::fclose(static_cast<std::FILE*>(handle_));
+}
+void SharedFile::write_at(std::uint64_t position, const void* data, std::size_t bytes) {
+  auto* f = static_cast<std::FILE*>(handle_);
+  if (std::fseek(f, static_cast<long>(position), SEEK_SET) != 0 ||
+      std::fwrite(data, 1, bytes, f) != bytes)
+    throw InputError(fmt::format("{}: write failed ({})", part_, std::strerror(errno)));
+}
+void SharedFile::commit() {
+  if (!handle_)
+    return;
+  std::fclose(static_cast<std::FILE*>(handle_));
+  handle_ = nullptr;
+  std::rename(part_.c_str(), path_.c_str());
+}
 
 ProcessGroup::ProcessGroup(int&, char**&) {}
 ProcessGroup::~ProcessGroup() = default;

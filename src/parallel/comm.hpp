@@ -5,6 +5,7 @@
 
 #include "parallel/subdomain.hpp"
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,25 @@ void broadcast_from_first(std::string& bytes);
 // after they stopped agreeing step by step, which would leave the others waiting forever.
 // Without MPI, or in one process, it returns and the caller ends as usual.
 void abort_processes(int code);
+
+// A file that every process writes parts of, each at its own positions (MPI-IO), under
+// "<path>.part", renamed to <path> by the first process once all have closed it: as
+// OutputFile, a stop part-way never leaves a half-written file under its final name.
+// Opening and commit() are collective; write_at is not. Throws InputError when the file
+// cannot be opened or written.
+class SharedFile {
+public:
+  explicit SharedFile(const std::string& path);
+  ~SharedFile();
+  SharedFile(const SharedFile&) = delete;
+  SharedFile& operator=(const SharedFile&) = delete;
+  void write_at(std::uint64_t position, const void* data, std::size_t bytes);
+  void commit();
+
+private:
+  std::string path_, part_;
+  void* handle_ = nullptr; // MPI_File, or std::FILE* in a build without MPI
+};
 
 double min_over_processes(double x);
 double max_over_processes(double x);

@@ -1,0 +1,108 @@
+#include "parallel/snapshot.hpp"
+
+#include "parallel/comm.hpp"
+
+#include <cstring>
+
+namespace ldem {
+
+SubdomainVtuWriter::SubdomainVtuWriter(const SubdomainRun& run, const Lattice& whole)
+    : whole_(whole),
+      layout_(vtu_layout(whole.num_nodes(), whole.num_bars(), run.sim().table().per_bar())),
+      nodes_(subdomain_node_spans(run.subdomain(), whole, true)),
+      bars_(subdomain_bar_spans(run.subdomain(), whole, true)) {}
+
+namespace {
+
+// Fills `buf` with count values of `width` bytes, value q from put(q, destination).
+template <class T, class Put>
+void fill(std::vector<char>& buf, index_t count, int per_item, Put&& put) {
+  buf.resize(sizeof(T) * per_item * std::size_t{count});
+  auto* out = reinterpret_cast<T*>(buf.data());
+  for (index_t q = 0; q < count; ++q)
+    put(q, out + std::size_t{q} * per_item);
+}
+
+} // namespace
+
+void SubdomainVtuWriter::write(const SubdomainRun& run, const std::string& path) {
+  SharedFile file(path);
+  const VtuLayout& l = layout_;
+  if (process_rank() == 0) { // the header, every array's byte count, the trailer
+    file.write_at(0, l.header.data(), l.header.size());
+    for (int a = 0; a < VtuLayout::kArrays; ++a)
+      if (l.present[a])
+        file.write_at(l.at[a], &l.bytes[a], sizeof l.bytes[a]);
+    const std::size_t n = std::strlen(VtuLayout::trailer);
+    file.write_at(l.size - n, VtuLayout::trailer, n);
+  }
+  const Simulation& sim = run.sim();
+  auto put = [&](VtuLayout::Array a, const Span& s, std::size_t width) {
+    file.write_at(l.value_at(a, s.global_first, width), buf_.data(), buf_.size());
+  };
+  // Nodes: displacement, velocity and reference position, as LatticeVtuWriter converts them.
+  auto vec3 = [](float* o, Vec3 v) {
+    o[0] = static_cast<float>(v.x);
+    o[1] = static_cast<float>(v.y);
+    o[2] = static_cast<float>(v.z);
+  };
+  for (const Span& s : nodes_) {
+    fill<float>(buf_, s.count, 3,
+                [&](index_t q, float* o) { vec3(o, sim.displacement(s.local_first + q)); });
+    put(VtuLayout::Displacement, s, 12);
+    fill<float>(buf_, s.count, 3,
+                [&](index_t q, float* o) { vec3(o, sim.half_step_velocity(s.local_first + q)); });
+    put(VtuLayout::Velocity, s, 12);
+    fill<float>(buf_, s.count, 3,
+                [&](index_t q, float* o) { vec3(o, whole_.position(s.global_first + q)); });
+    put(VtuLayout::Points, s, 12);
+  }
+  // Bars: the window's states, damage and forces (owned bars taken), connectivity in the
+  // body's node numbers, and the material fields where they vary.
+  sim.bar_snapshot(state_, damage_, force_);
+  const bool fields = l.present[VtuLayout::E];
+  for (const Span& s : bars_) {
+    const index_t lb = s.local_first, gb = s.global_first;
+    fill<float>(buf_, s.count, 1,
+                [&](index_t q, float* o) { *o = static_cast<float>(damage_[lb + q]); });
+    put(VtuLayout::Damage, s, 4);
+    fill<std::uint8_t>(buf_, s.count, 1, [&](index_t q, std::uint8_t* o) { *o = state_[lb + q]; });
+    put(VtuLayout::State, s, 1);
+    fill<float>(buf_, s.count, 1,
+                [&](index_t q, float* o) { *o = static_cast<float>(force_[lb + q]); });
+    put(VtuLayout::Force, s, 4);
+    if (fields) {
+      const Lattice& local = sim.lattice();
+      const BarTable& table = sim.table();
+      fill<float>(buf_, s.count, 1, [&](index_t q, float* o) {
+        *o = static_cast<float>(table.properties(local, lb + q).E);
+      });
+      put(VtuLayout::E, s, 4);
+      fill<float>(buf_, s.count, 1, [&](index_t q, float* o) {
+        *o = static_cast<float>(table.properties(local, lb + q).Gf);
+      });
+      put(VtuLayout::Gf, s, 4);
+      fill<float>(buf_, s.count, 1,
+                  [&](index_t q, float* o) { *o = static_cast<float>(table.e_p_bar()[lb + q]); });
+      put(VtuLayout::EP, s, 4);
+      fill<float>(buf_, s.count, 1,
+                  [&](index_t q, float* o) { *o = static_cast<float>(table.e_r_bar()[lb + q]); });
+      put(VtuLayout::ER, s, 4);
+    }
+    fill<std::int32_t>(buf_, s.count, 2, [&](index_t q, std::int32_t* o) {
+      const auto nodes = whole_.bar_nodes(gb + q);
+      o[0] = static_cast<std::int32_t>(nodes[0]);
+      o[1] = static_cast<std::int32_t>(nodes[1]);
+    });
+    put(VtuLayout::Connectivity, s, 8);
+    fill<std::int32_t>(buf_, s.count, 1, [&](index_t q, std::int32_t* o) {
+      *o = static_cast<std::int32_t>(2 * (std::int64_t{gb + q} + 1));
+    });
+    put(VtuLayout::Offsets, s, 4);
+    fill<std::uint8_t>(buf_, s.count, 1, [](index_t, std::uint8_t* o) { *o = 3; }); // VTK_LINE
+    put(VtuLayout::Types, s, 1);
+  }
+  file.commit();
+}
+
+} // namespace ldem

@@ -1,0 +1,31 @@
+// VTU snapshots of a distributed run written by all its processes into one file: each writes
+// the values of the nodes and bars it owns at their places in the file (io/output.hpp's
+// VtuLayout), so the file is byte for byte the one a single process writes and no process
+// gathers the body.
+#pragma once
+
+#include "io/output.hpp"
+#include "parallel/subdomain.hpp"
+
+#include <string>
+#include <vector>
+
+namespace ldem {
+
+class SubdomainVtuWriter {
+public:
+  // `whole` is the body's lattice; run.sim()'s table says whether the material fields vary.
+  SubdomainVtuWriter(const SubdomainRun& run, const Lattice& whole);
+  // The snapshot of the current state at `path`. Collective.
+  void write(const SubdomainRun& run, const std::string& path);
+
+private:
+  Lattice whole_;
+  VtuLayout layout_;
+  std::vector<Span> nodes_, bars_; // owned
+  std::vector<char> buf_;          // one span's values, reused
+  std::vector<std::uint8_t> state_;
+  std::vector<double> damage_, force_;
+};
+
+} // namespace ldem
