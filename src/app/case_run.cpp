@@ -546,7 +546,7 @@ private:
 namespace {
 
 constexpr char kCheckpointMagic[8] = {'L', 'D', 'E', 'M', 'C', 'K', 'P', 'T'};
-constexpr std::uint32_t kCheckpointVersion = 1;
+constexpr std::uint32_t kCheckpointVersion = 2;
 
 std::uint64_t fnv1a(const char* p, std::size_t n) {
   std::uint64_t h = 0xcbf29ce484222325ull;

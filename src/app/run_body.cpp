@@ -195,10 +195,15 @@ void RunBody::append_energy_rows(std::vector<double>& out) {
   for (auto* v : {&rows.elastic, &rows.damage, &rows.bar_keys, &rows.kinetic, &rows.node_keys})
     v->clear();
   run_->append_owned_energy_rows(rows);
-  const EnergyReport& r = sim.last_report();
-  out.insert(out.end(),
-             {r.external_work, r.damping_dissipated, sim.report_condition_kinetic(),
-              static_cast<double>(rows.elastic.size()), static_cast<double>(rows.kinetic.size())});
+  // The exact sums this process adds up (work, twice the damping, the imposed-velocity DOF's
+  // kinetic energy), then the row counts and rows.
+  for (const ExactSum* e :
+       {&sim.report_work(), &sim.report_twice_damping(), &sim.report_condition_kinetic()}) {
+    out.resize(out.size() + ExactSum::kDoubles);
+    e->write(out.data() + out.size() - ExactSum::kDoubles);
+  }
+  out.push_back(static_cast<double>(rows.elastic.size()));
+  out.push_back(static_cast<double>(rows.kinetic.size()));
   for (const auto* v : {&rows.elastic, &rows.damage, &rows.kinetic})
     out.insert(out.end(), v->begin(), v->end());
 }
@@ -228,42 +233,43 @@ void RunBody::read_report(bool report) {
   // body's rows in order.
   std::vector<const double*> probe_terms;
   std::vector<double> elastic_rows, damage_rows, kinetic_rows;
-  double work = 0.0, damping = 0.0, kinetic = 0.0;
+  ExactSum work, damping2, kinetic;
   std::size_t pos = 0;
   for (int r = 0; r < ranks_; ++r) {
     if (report) {
       probe_terms.push_back(all.data() + pos + 1);
       pos += 1 + static_cast<std::size_t>(all[pos]);
     }
-    work += all[pos];
-    damping += all[pos + 1];
-    kinetic += all[pos + 2];
-    const auto nb = static_cast<std::size_t>(all[pos + 3]);
-    const auto nn = static_cast<std::size_t>(all[pos + 4]);
-    const auto rows = all.begin() + static_cast<std::ptrdiff_t>(pos + 5);
+    for (ExactSum* e : {&work, &damping2, &kinetic}) {
+      ExactSum part;
+      part.read(all.data() + pos);
+      e->add(part);
+      pos += ExactSum::kDoubles;
+    }
+    const auto nb = static_cast<std::size_t>(all[pos]);
+    const auto nn = static_cast<std::size_t>(all[pos + 1]);
+    const auto rows = all.begin() + static_cast<std::ptrdiff_t>(pos + 2);
     const auto b = static_cast<std::ptrdiff_t>(nb), n = static_cast<std::ptrdiff_t>(nn);
     elastic_rows.insert(elastic_rows.end(), rows, rows + b);
     damage_rows.insert(damage_rows.end(), rows + b, rows + 2 * b);
     kinetic_rows.insert(kinetic_rows.end(), rows + 2 * b, rows + 2 * b + n);
-    pos += 5 + 2 * nb + nn;
+    pos += 2 + 2 * nb + nn;
     const auto ne = static_cast<std::size_t>(all[pos]);
     for (std::size_t q = pos + 1; q < pos + 1 + ne; q += 3)
       events_.push_back({static_cast<index_t>(all[q]), static_cast<BarState>(all[q + 1]),
                          static_cast<std::uint64_t>(all[q + 2])});
     pos += 1 + ne;
   }
-  // From zero, row after row, as one process sums them (the kinetic energy after the
-  // imposed-velocity DOF's, as there).
+  // From zero, row after row, as one process sums them; the kinetic energy exactly, as there.
   const double elastic = sum_in_order(elastic_rows, bar_order_);
   const double damage = sum_in_order(damage_rows, bar_order_);
-  for (std::size_t q : node_order_)
-    kinetic += kinetic_rows[q];
+  for (double x : kinetic_rows)
+    kinetic.add(x);
   const double t = run_->sim().last_report().time;
   if (t == 0.0)
-    initial_ = elastic + kinetic;
-  Ledger ledger;
-  ledger.set_state({work, damping, initial_});
-  report_ = ledger.report(t, elastic, kinetic, damage, 0.0, 0.0);
+    initial_ = elastic + kinetic.value();
+  report_ = energy_report(t, work.value(), elastic, kinetic.value(), damage, 0.5 * damping2.value(),
+                          initial_);
   if (!report)
     return;
   // Probes: the owner's bar force; a reaction's terms subtracted in the set's order, each
@@ -327,9 +333,8 @@ Simulation* RunBody::whole(bool full) {
       sim.append_displacements(s.local_first, s.count, mine, previous);
   for (const Span& s : subdomain_bar_spans(run_->subdomain(), body, true))
     sim.append_histories(s.local_first, s.count, mine);
-  const std::array<double, 3> ledger = sim.ledger_state();
-  mine.push_back(ledger[0]);
-  mine.push_back(ledger[1]);
+  mine.resize(mine.size() + Ledger::State::kDoubles);
+  sim.ledger_state().write(mine.data() + mine.size() - Ledger::State::kDoubles);
   if (full)
     append_events(mine); // those since the last report
   gather_on_first(mine, received_);
@@ -337,7 +342,7 @@ Simulation* RunBody::whole(bool full) {
     return nullptr;
   Simulation& w = *c_.sim;
   const double* in = received_.data();
-  double work = 0.0, damping = 0.0;
+  Ledger::State ledger; // the processes' accumulators, added exactly
   for (int r = 0; r < ranks_; ++r) {
     const Subdomain sub = make_subdomain(body.ny(), body.nz(), run_->subdomain().grid, r);
     for (bool previous : {false, true})
@@ -349,9 +354,10 @@ Simulation* RunBody::whole(bool full) {
       w.assign_histories(s.global_first, s.count, in);
       in += s.count;
     }
-    work += in[0];
-    damping += in[1];
-    in += 2;
+    Ledger::State part;
+    part.read(in);
+    ledger.add(part);
+    in += Ledger::State::kDoubles;
     if (full) {
       const auto ne = static_cast<std::size_t>(in[0]);
       for (std::size_t q = 1; q + 2 <= ne; q += 3)
@@ -361,9 +367,8 @@ Simulation* RunBody::whole(bool full) {
     }
   }
   std::vector<Event> pending = take_events(); // a checkpoint keeps those not yet written
-  const std::array<double, 3> state =
-      full ? std::array<double, 3>{work, damping, initial_} : w.ledger_state();
-  w.restore_progress(step_count(), state, report_, std::move(pending));
+  ledger.initial = initial_;
+  w.restore_progress(step_count(), full ? ledger : w.ledger_state(), report_, std::move(pending));
   return &w;
 }
 
@@ -388,7 +393,7 @@ void RunBody::spread_whole_state() {
     return;
   const Lattice& body = lattice();
   std::vector<std::vector<double>> parts;
-  double progress[4] = {0.0, 0.0, 0.0, 0.0}; // step, work, damping, initial energy
+  double progress[1 + Ledger::State::kDoubles] = {}; // the step, the body's ledger
   if (writes()) {
     const Simulation& w = *c_.sim;
     for (int r = 0; r < ranks_; ++r) {
@@ -401,15 +406,12 @@ void RunBody::spread_whole_state() {
         w.append_histories(s.global_first, s.count, part);
       parts.push_back(std::move(part));
     }
-    const std::array<double, 3> ledger = w.ledger_state();
     progress[0] = static_cast<double>(w.step_count());
-    progress[1] = ledger[0];
-    progress[2] = ledger[1];
-    progress[3] = ledger[2];
+    w.ledger_state().write(progress + 1);
     report_ = w.last_report();
   }
   const std::vector<double> part = scatter_from_first(parts);
-  broadcast_from_first(progress, 4);
+  broadcast_from_first(progress, 1 + Ledger::State::kDoubles);
   Simulation& sim = run_->sim();
   const double* in = part.data();
   for (bool previous : {false, true})
@@ -421,11 +423,12 @@ void RunBody::spread_whole_state() {
     sim.assign_histories(s.local_first, s.count, in);
     in += s.count;
   }
-  initial_ = progress[3];
+  Ledger::State ledger;
+  ledger.read(progress + 1);
+  initial_ = ledger.initial;
   // The body's accumulated work and damping go to the first process; the others add from zero.
-  const std::array<double, 3> ledger =
-      writes() ? std::array<double, 3>{progress[1], progress[2], initial_}
-               : std::array<double, 3>{0.0, 0.0, initial_};
+  if (!writes())
+    ledger = Ledger::State{{}, {}, initial_};
   sim.restore_progress(static_cast<std::uint64_t>(progress[0]), ledger, {}, {});
 }
 

@@ -1,6 +1,8 @@
 // The energy balance: external work = elastic + kinetic + damage + damping (+ initial).
 #pragma once
 
+#include "energy/exact_sum.hpp"
+
 #include <array>
 
 namespace ldem {
@@ -16,31 +18,47 @@ struct EnergyReport {
   double balance_error = 0.0; // |W + E0 - (U + K + D + Dc)| / max(W + E0, tiny)
 };
 
+// A report from its energies, with the balance error.
+EnergyReport energy_report(double time, double external_work, double elastic, double kinetic,
+                           double damage, double damping, double initial);
+
 // Accumulates work and damping dissipation step by step with the central-difference
 // identity m (v+ - v-) . (v+ + v-) / 2 = F_n . (u_{n+1} - u_{n-1}) / 2: the increment of
 // step n is F_n . dt (v_{n-1/2} + v_{n+1/2}) / 2. A report at t_n adds the half of step
 // n's increment that lies before t_n, F_n . dt v_{n-1/2} / 2.
+// The sums are exact (ExactSum), term by term, so their bits do not depend on the order in
+// which the terms come, nor on how the body is split among processes.
 class Ledger {
 public:
-  void add_step(double external_work, double damping_dissipated) {
-    work_ += external_work;
-    damping_ += damping_dissipated;
-  }
-  void set_initial(double energy) { initial_ = energy; }
-  // The accumulators, for checkpoints.
-  std::array<double, 3> state() const { return {work_, damping_, initial_}; }
-  void set_state(const std::array<double, 3>& s) {
-    work_ = s[0];
-    damping_ = s[1];
-    initial_ = s[2];
-  }
-  double initial() const { return initial_; }
+  struct State {
+    ExactSum work, damping;
+    double initial = 0.0;
+    static constexpr int kDoubles = 2 * ExactSum::kDoubles + 1;
+    void write(double* out) const;
+    void read(const double* in);
+    // The sum of two processes' accumulators (the initial energy is the body's, kept).
+    void add(const State& other) {
+      work.add(other.work);
+      damping.add(other.damping);
+    }
+  };
 
-  EnergyReport report(double time, double elastic, double kinetic, double damage, double work_half,
-                      double damping_half) const;
+  // A step's terms, each added exactly.
+  ExactSum& work() { return s_.work; }
+  ExactSum& damping() { return s_.damping; }
+  void set_initial(double energy) { s_.initial = energy; }
+  double initial() const { return s_.initial; }
+  const State& state() const { return s_; }
+  void set_state(const State& s) { s_ = s; }
+
+  // At a report at the start of a step whose whole damping dissipation is `damping_step`, of
+  // which half counts before t_n: twice the damping dissipated by then, 2 D + S, exactly
+  // (the report's damping is half its value). The report's work is s.work plus the step's
+  // work before t_n.
+  static ExactSum twice_damping_at_report(const State& s, const ExactSum& damping_step);
 
 private:
-  double work_ = 0.0, damping_ = 0.0, initial_ = 0.0;
+  State s_;
 };
 
 } // namespace ldem

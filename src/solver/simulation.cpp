@@ -323,7 +323,7 @@ void Simulation::assign_histories(index_t first, index_t count, const double* in
   std::copy(in, in + count, h_.begin() + first);
 }
 
-void Simulation::restore_progress(std::uint64_t step, const std::array<double, 3>& ledger,
+void Simulation::restore_progress(std::uint64_t step, const Ledger::State& ledger,
                                   const EnergyReport& report, std::vector<Event> pending) {
   step_ = step;
   ledger_.set_state(ledger);
@@ -881,7 +881,7 @@ void Simulation::apply_loads(double t) {
 // support must apply. Returns nothing: adds to the per-step sums below.
 void Simulation::apply_velocities(double t, bool report) {
   const double dt = dt_, half = 0.5 * opt_.damping * dt;
-  double work = 0.0, work_half = 0.0, damping = 0.0, kinetic = 0.0;
+  ExactSum work, work_half, damping, kinetic;
   for (std::size_t c = 0; c < cond_.velocities.size(); ++c) {
     const ImposedVelocity& iv = cond_.velocities[c];
     const double s = iv.scale(t + 0.5 * dt);
@@ -905,11 +905,11 @@ void Simulation::apply_velocities(double t, bool report) {
         const double vmid = 0.5 * (vold[d] + target[d]);
         // The support's reaction R acts together with any load P on the DOF.
         const double P = px_.empty() ? 0.0 : (d == 0 ? px_[n] : d == 1 ? py_[n] : pz_[n]);
-        work += (R + P) * dt * vmid;
-        damping += opt_.damping * dt * mass_[n] * vmid * vmid;
+        work.add((R + P) * dt * vmid);
+        damping.add(opt_.damping * dt * mass_[n] * vmid * vmid);
         if (report) {
-          work_half += 0.5 * (R + P) * dt * vold[d];
-          kinetic += 0.5 * mass_[n] * vold[d] * target[d];
+          work_half.add(0.5 * (R + P) * dt * vold[d]);
+          kinetic.add(0.5 * mass_[n] * vold[d] * target[d]);
         }
         *w[d] = *u[d] + dt * target[d];
       }
@@ -946,27 +946,32 @@ void Simulation::step(bool report) {
   }
   apply_velocities(t, energies);
 
-  double damping = cond_damping_, load_mid = cond_work_;
+  // The step's work and damping, row by row and DOF by DOF, added exactly (Ledger).
+  ExactSum damping = cond_damping_, load_mid = cond_work_;
   for (std::size_t r = 0; r < node_rows_.size(); ++r) {
-    damping += row_damping_[r];
-    load_mid += row_load_mid_[r];
+    damping.add(row_damping_[r]);
+    load_mid.add(row_load_mid_[r]);
   }
   if (energies) {
-    double kinetic = cond_kinetic_, work_half = cond_work_half_;
+    ExactSum kinetic = cond_kinetic_, work_half = cond_work_half_;
     for (std::size_t r = 0; r < node_rows_.size(); ++r) {
-      kinetic += row_kinetic_[r];
-      work_half += row_load_half_[r];
+      kinetic.add(row_kinetic_[r]);
+      work_half.add(row_load_half_[r]);
     }
     // Damping: the part of this step's dissipation a dt v_n . m v_n that lies before t_n,
     // taken as half of it (the exact split a m v_n . dt v_{n-1/2} / 2 differs by O(dt^2)).
-    const double damping_half = 0.5 * damping;
     const BarEnergies bars = sum_bar_energies(true); // intact rows done in the bar pass
     const double elastic = bars.elastic, damage = bars.damage;
     if (step_ == 0)
-      ledger_.set_initial(elastic + kinetic);
-    report_ = ledger_.report(t, elastic, kinetic, damage, work_half, damping_half);
+      ledger_.set_initial(elastic + kinetic.value());
+    report_work_ = ledger_.state().work;
+    report_work_.add(work_half);
+    report_damping2_ = Ledger::twice_damping_at_report(ledger_.state(), damping);
+    report_ = energy_report(t, report_work_.value(), elastic, kinetic.value(), damage,
+                            0.5 * report_damping2_.value(), ledger_.initial());
   }
-  ledger_.add_step(load_mid, damping);
+  ledger_.work().add(load_mid);
+  ledger_.damping().add(damping);
   ux_.swap(wx_);
   uy_.swap(wy_);
   uz_.swap(wz_);
@@ -1197,7 +1202,9 @@ template <class T> void get_vec(const std::string& in, std::size_t& pos, std::ve
 void Simulation::save_state(std::string& out) const {
   put(out, step_);
   put(out, dt_);
-  put(out, ledger_.state());
+  std::array<double, Ledger::State::kDoubles> ledger{};
+  ledger_.state().write(ledger.data());
+  put(out, ledger);
   put(out, report_);
   for (const auto* v : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &h_})
     put_vec(out, *v);
@@ -1222,9 +1229,11 @@ void Simulation::load_state(const std::string& in, std::size_t& pos) {
     throw InputError(fmt::format("checkpoint: its time step {:.17g} s differs from this case's "
                                  "{:.17g} s",
                                  dt, dt_));
-  std::array<double, 3> ledger{};
+  std::array<double, Ledger::State::kDoubles> ledger{};
   get(in, pos, ledger);
-  ledger_.set_state(ledger);
+  Ledger::State state;
+  state.read(ledger.data());
+  ledger_.set_state(state);
   get(in, pos, report_);
   for (auto* v : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &h_})
     get_vec(in, pos, *v);

@@ -147,12 +147,15 @@ public:
   // After the displacements and histories are assigned: the step count, the energy
   // accumulators (Ledger::state), the last report and the events not yet taken, as
   // save_state would give them. The rows' damage flags are derived again from the histories.
-  void restore_progress(std::uint64_t step, const std::array<double, 3>& ledger,
-                        const EnergyReport& report, std::vector<Event> pending);
-  std::array<double, 3> ledger_state() const { return ledger_.state(); }
-  // The kinetic energy of the imposed-velocity DOF in the last report (part of its kinetic
-  // energy, not of report_node_kinetic's rows).
-  double report_condition_kinetic() const { return cond_kinetic_; }
+  void restore_progress(std::uint64_t step, const Ledger::State& ledger, const EnergyReport& report,
+                        std::vector<Event> pending);
+  const Ledger::State& ledger_state() const { return ledger_.state(); }
+  // The last report's exact parts, which a distributed run adds over its processes before
+  // rounding: the external work, twice the damping dissipation, and the kinetic energy of the
+  // imposed-velocity DOF (part of the kinetic energy, not of report_node_kinetic's rows).
+  const ExactSum& report_work() const { return report_work_; }
+  const ExactSum& report_twice_damping() const { return report_damping2_; }
+  const ExactSum& report_condition_kinetic() const { return cond_kinetic_; }
   void set_half_step_velocity(index_t node, Vec3 v);
   BarState bar_state(index_t bar) const;
   double bar_history(index_t bar) const { return h_[bar]; }
@@ -275,7 +278,8 @@ private:
   std::vector<std::vector<Vec3>> imposed_v_old_;
 
   // Sums over the imposed-velocity DOF of the current step (apply_velocities).
-  double cond_work_ = 0.0, cond_work_half_ = 0.0, cond_damping_ = 0.0, cond_kinetic_ = 0.0;
+  ExactSum cond_work_, cond_work_half_, cond_damping_, cond_kinetic_;
+  ExactSum report_work_, report_damping2_; // of the last report (see report_work)
 
   mutable std::vector<double> energy_rows_u_, energy_rows_d_; // per-row sums (bar_energies)
 

@@ -1,0 +1,130 @@
+#include "energy/exact_sum.hpp"
+
+#include <bit>
+#include <cmath>
+
+namespace ldem {
+
+namespace {
+
+using Limbs = std::array<std::uint64_t, ExactSum::kLimbs>;
+
+void add_limbs(Limbs& a, const Limbs& b) {
+  unsigned carry = 0;
+  for (int i = 0; i < ExactSum::kLimbs; ++i) {
+    const std::uint64_t s = a[i] + b[i];
+    const unsigned c1 = s < a[i] ? 1u : 0u;
+    a[i] = s + carry;
+    carry = c1 | (a[i] < s ? 1u : 0u);
+  }
+}
+
+void negate(Limbs& a) { // two's complement
+  for (auto& l : a)
+    l = ~l;
+  const Limbs one{1, 0, 0, 0};
+  add_limbs(a, one);
+}
+
+} // namespace
+
+void ExactSum::add(double x) {
+  // The IEEE fields: |x| = mant 2^(exponent - 1075) (normal) or mant 2^-1074 (subnormal).
+  const auto bits = std::bit_cast<std::uint64_t>(x);
+  const auto exponent = static_cast<int>((bits >> 52) & 0x7ff);
+  std::uint64_t mant = bits & ((std::uint64_t{1} << 52) - 1);
+  if (exponent == 0x7ff) { // infinity or NaN
+    special_ += x;
+    return;
+  }
+  if (exponent != 0)
+    mant |= std::uint64_t{1} << 52;
+  if (mant == 0)
+    return;
+  // In units of 2^-160, |x| is mant shifted left by `shift` bits.
+  const int shift = (exponent == 0 ? -1074 : exponent - 1075) + kFractionBits;
+  Limbs t{};
+  if (shift < 0) {
+    if (shift <= -64)
+      return; // below 2^-160: dropped
+    t[0] = mant >> -shift;
+  } else {
+    const int limb = shift / 64, bit = shift % 64;
+    // mant has 53 bits: they must stay below the sign bit, 255.
+    if (limb >= kLimbs || (limb + 1 == kLimbs && bit > 64 - 54)) {
+      special_ += x > 0.0 ? HUGE_VAL : -HUGE_VAL; // beyond the range: shown as infinite
+      return;
+    }
+    t[static_cast<std::size_t>(limb)] = mant << bit;
+    if (bit != 0 && limb + 1 < kLimbs)
+      t[static_cast<std::size_t>(limb + 1)] = mant >> (64 - bit);
+  }
+  if ((bits >> 63) != 0)
+    negate(t);
+  add_limbs(limbs_, t);
+}
+
+void ExactSum::add(const ExactSum& other) {
+  add_limbs(limbs_, other.limbs_);
+  special_ += other.special_;
+}
+
+void ExactSum::twice() {
+  for (int i = kLimbs - 1; i > 0; --i)
+    limbs_[i] = (limbs_[i] << 1) | (limbs_[i - 1] >> 63);
+  limbs_[0] <<= 1;
+}
+
+double ExactSum::value() const {
+  if (special_ != 0.0 || std::isnan(special_))
+    return special_;
+  Limbs a = limbs_;
+  const bool negative = (a[kLimbs - 1] >> 63) != 0;
+  if (negative)
+    negate(a);
+  int top = kLimbs - 1;
+  while (top >= 0 && a[static_cast<std::size_t>(top)] == 0)
+    --top;
+  if (top < 0)
+    return 0.0;
+  // The leading 64 bits, with any bit below them kept as a sticky last bit so that the
+  // conversion to 53 bits rounds to nearest as the exact value would.
+  const int lead = 63 - std::countl_zero(a[static_cast<std::size_t>(top)]); // bit in its limb
+  const int p = 64 * top + lead; // highest set bit of the whole number
+  std::uint64_t head = 0;
+  bool sticky = false;
+  if (p < 64) {
+    head = a[0];
+  } else {
+    const int low = p - 63; // the bit that becomes bit 0 of head
+    const int limb = low / 64, bit = low % 64;
+    head = a[static_cast<std::size_t>(limb)] >> bit;
+    if (bit != 0)
+      head |= a[static_cast<std::size_t>(limb + 1)] << (64 - bit);
+    sticky = bit != 0 && (a[static_cast<std::size_t>(limb)] << (64 - bit)) != 0;
+    for (int i = 0; i < limb && !sticky; ++i)
+      sticky = a[static_cast<std::size_t>(i)] != 0;
+    if (sticky)
+      head |= 1;
+  }
+  const int scale = (p < 64 ? 0 : p - 63) - kFractionBits;
+  const double v = std::ldexp(static_cast<double>(head), scale);
+  return negative ? -v : v;
+}
+
+void ExactSum::write(double* out) const {
+  for (std::size_t i = 0; i < kLimbs; ++i) {
+    out[2 * i] = static_cast<double>(limbs_[i] & 0xffffffffu);
+    out[2 * i + 1] = static_cast<double>(limbs_[i] >> 32);
+  }
+  out[2 * kLimbs] = special_;
+}
+
+void ExactSum::read(const double* in) {
+  for (std::size_t i = 0; i < kLimbs; ++i)
+    limbs_[i] =
+        static_cast<std::uint64_t>(in[2 * i]) | (static_cast<std::uint64_t>(in[2 * i + 1]) << 32);
+  special_ = in[2 * kLimbs];
+}
+
+} // namespace ldem
