@@ -96,7 +96,6 @@ RunBody::RunBody(BuiltCase& c, ProcessGrid grid, int rank)
   EnergyRows rows;
   run_->append_owned_row_keys(rows);
   bar_order_ = key_order(gather_on_first(rows.bar_keys));
-  node_order_ = key_order(gather_on_first(rows.node_keys));
 }
 
 std::uint64_t RunBody::step_count() const {
@@ -192,7 +191,7 @@ void RunBody::append_probe_terms(std::vector<double>& out) const {
 void RunBody::append_energy_rows(std::vector<double>& out) {
   const Simulation& sim = run_->sim();
   EnergyRows& rows = rows_;
-  for (auto* v : {&rows.elastic, &rows.damage, &rows.bar_keys, &rows.kinetic, &rows.node_keys})
+  for (auto* v : {&rows.elastic, &rows.damage, &rows.bar_keys, &rows.kinetic})
     v->clear();
   run_->append_owned_energy_rows(rows);
   // The exact sums this process adds up (work, twice the damping, the imposed-velocity DOF's
@@ -229,8 +228,8 @@ void RunBody::read_report(bool report) {
   const Lattice& whole = lattice();
   const auto& probes = c_.spec.probes;
   // Per process, in rank order: its probe terms, its sums and energy rows, its events. The
-  // rows of all processes, in rank order, visited in bar_order_ and node_order_ are the
-  // body's rows in order.
+  // bar rows of all processes, in rank order, visited in bar_order_ are the body's rows in
+  // order.
   std::vector<const double*> probe_terms;
   std::vector<double> elastic_rows, damage_rows, kinetic_rows;
   ExactSum work, damping2, kinetic;

@@ -4,15 +4,14 @@
 //
 // In a distributed run every member is collective: all processes call them in the same
 // order. What the outputs need comes to the first process:
-// - energies: each process's owned rows gathered and summed in the body's row order
-//   (elastic, dissipated and the nodes' kinetic energy: the bits of one process); the
-//   external work, the damping dissipation and the kinetic energy of imposed-velocity DOF are
-//   summed per process first, then over the processes in rank order (the same to about 1e-15
-//   relative);
+// - energies: each process's owned bar rows gathered and summed in the body's row order
+//   (elastic and dissipated energy), its exact sums (work, damping, kinetic energy: Ledger,
+//   ExactSum) added exactly: the bits of one process;
 // - events of the bars each process owns, in the body's numbers and (step, bar) order;
 // - probes: the owner's bar force, the reaction's per-node terms summed in the set's order;
-// - snapshots, checkpoints and the end summary: the owned nodes' displacements and owned
-//   bars' histories copied into the whole-body Simulation (`whole`).
+// - checkpoints and the end summary: the owned nodes' displacements and owned bars'
+//   histories copied into the whole-body Simulation (`whole`); VTU snapshots are written by
+//   every process into the one file (src/parallel/snapshot.hpp).
 #pragma once
 
 #include "app/case_run.hpp"
@@ -91,9 +90,9 @@ private:
   std::unique_ptr<LatticeVtuWriter> vtu_;             // one process
   std::unique_ptr<SubdomainVtuWriter> subdomain_vtu_; // distributed
   EnergyRows rows_; // this process's rows of a report, kept from call to call
-  // The order of the body's bar and node rows among all processes' rows of a report, in
-  // rank order (first process).
-  std::vector<std::size_t> bar_order_, node_order_;
+  // The order of the body's bar rows among all processes' rows of a report, in rank order
+  // (first process).
+  std::vector<std::size_t> bar_order_;
   std::vector<double> halo_[4];
   std::vector<double> send_, received_; // gathers' buffers, kept from call to call
   EnergyReport report_{};

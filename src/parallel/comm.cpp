@@ -291,11 +291,12 @@ EnergySums gather_energies(const SubdomainRun& run) {
   EnergyRows rows;
   run.append_owned_energy_rows(rows);
   const std::vector<double> bar_keys = gather_on_first(rows.bar_keys);
-  const std::vector<double> node_keys = gather_on_first(rows.node_keys);
-  const std::vector<std::size_t> bar_order = key_order(bar_keys), node_order = key_order(node_keys);
+  const std::vector<std::size_t> bar_order = key_order(bar_keys);
+  ExactSum kinetic;
+  for (double x : gather_on_first(rows.kinetic))
+    kinetic.add(x);
   double sums[3] = {sum_in_order(gather_on_first(rows.elastic), bar_order),
-                    sum_in_order(gather_on_first(rows.damage), bar_order),
-                    sum_in_order(gather_on_first(rows.kinetic), node_order)};
+                    sum_in_order(gather_on_first(rows.damage), bar_order), kinetic.value()};
   broadcast_from_first(sums, 3);
   return {sums[0], sums[1], sums[2]};
 }

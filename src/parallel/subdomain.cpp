@@ -311,8 +311,7 @@ bool SubdomainRun::owns_bar(index_t local_bar) const {
 
 template <class Bar, class Node>
 void SubdomainRun::for_each_owned_row(Bar&& bar_row, Node&& node_row) const {
-  // Keys: the body's row order, plane k, then line j, then family (bar rows) or corner before
-  // centre (node rows), as the step visits them.
+  // Keys: the body's row order, plane k, then line j, then family, as the step visits them.
   const double lines = static_cast<double>(sub_.y.n) + 1.0;
   for (std::size_t r = 0; r < sim_.report_bar_elastic().size(); ++r) {
     const index_t j = sim_.bar_row_line(r) + sub_.y.w0, k = sim_.bar_row_plane(r) + sub_.z.w0;
@@ -323,13 +322,13 @@ void SubdomainRun::for_each_owned_row(Bar&& bar_row, Node&& node_row) const {
     const NodeRow& row = sim_.node_row(r);
     const index_t j = row.j + sub_.y.w0, k = row.k + sub_.z.w0;
     if (sub_.owns(j, k, !row.centre))
-      node_row(r, (k * lines + j) * 2 + (row.centre ? 1 : 0));
+      node_row(r);
   }
 }
 
 void SubdomainRun::append_owned_row_keys(EnergyRows& rows) const {
   for_each_owned_row([&](std::size_t, double key) { rows.bar_keys.push_back(key); },
-                     [&](std::size_t, double key) { rows.node_keys.push_back(key); });
+                     [](std::size_t) {});
 }
 
 void SubdomainRun::append_owned_energy_rows(EnergyRows& rows) const {
@@ -342,10 +341,7 @@ void SubdomainRun::append_owned_energy_rows(EnergyRows& rows) const {
         rows.damage.push_back(d[r]);
         rows.bar_keys.push_back(key);
       },
-      [&](std::size_t r, double key) {
-        rows.kinetic.push_back(kin[r]);
-        rows.node_keys.push_back(key);
-      });
+      [&](std::size_t r) { rows.kinetic.push_back(kin[r]); });
 }
 
 index_t SubdomainRun::send_index(int axis, int dir) const {

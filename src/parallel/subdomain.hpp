@@ -114,11 +114,13 @@ Conditions subdomain_conditions(const Subdomain& sub, const Lattice& whole, cons
                                 const Conditions& conditions);
 
 // The last report's energy rows of the subdomains of a run, each subdomain's owned rows in its
-// order, subdomain after subdomain, with every row's place in the body's order (its key): the
-// body's energies are the rows summed from zero in key order, the bits of one process.
+// order, subdomain after subdomain. The elastic and dissipated energies per bar row come with
+// each row's place in the body's order (its key): summed from zero in key order they are the
+// bits of one process. The kinetic energy per node row is summed exactly (ExactSum), in any
+// order, as one process sums it.
 struct EnergyRows {
   std::vector<double> elastic, damage, bar_keys; // per bar row
-  std::vector<double> kinetic, node_keys;        // per node row
+  std::vector<double> kinetic;                   // per node row
 };
 // The order in which to visit rows whose keys are `keys` (a permutation that sorts them).
 std::vector<std::size_t> key_order(const std::vector<double>& keys);
@@ -169,7 +171,7 @@ private:
   // Calls visit(first local node, count) for each run of nodes exchanged at `index` along
   // `axis`, in a fixed order.
   template <class F> void for_each_halo_run(int axis, index_t index, F&& visit) const;
-  // Calls bar_row(r, key) and node_row(r, key) for the owned rows of the local Simulation.
+  // Calls bar_row(r, key) and node_row(r) for the owned rows of the local Simulation.
   template <class Bar, class Node> void for_each_owned_row(Bar&& bar_row, Node&& node_row) const;
 
   Subdomain sub_;
