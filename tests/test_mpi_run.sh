@@ -35,7 +35,7 @@ done
 # modulus per bar and a correlated random density), split over y as well as z: 2 x 1, 3 x 1
 # and 2 x 2 boxes; a checkpoint of the 2 x 2 run resumed on 3 processes (the grid they choose,
 # 1 x 3).
-sed -e 's/^end = .*/end = 2.0e-3/; s/^modules = .*/modules = [40, 4, 20]/' \
+sed -e 's/^end = .*/end = 1.2e-3/; s/^modules = .*/modules = [40, 4, 20]/' \
   -e 's/^edge2 = .*/edge2 = [0.0, 0.022, 0.0]/' \
   -e 's/^E = .*/E = { type = "weibull", mean = 35.0e9, cv = 0.1, seed = 3 }/' \
   -e 's/^rho = .*/rho = { type = "weibull", mean = 2400.0, cv = 0.05, seed = 4, correlation_length = 0.01 }/' \
@@ -49,7 +49,7 @@ for grid in "2 1" "3 1" "2 2"; do
   compare "$T/thick-1" "$T/thick-$py$pz" "thick plate: $py x $pz processes against one"
 done
 mpi 4 run "$T/thick.toml" --out "$T/thick-ck" --no-plot --threads 1 --process-grid 2 2 \
-  --checkpoint-every 3000 >/dev/null 2>"$T/err" || bad "checkpointed 2 x 2 run: $(cat "$T/err")"
+  --checkpoint-every 1500 >/dev/null 2>"$T/err" || bad "checkpointed 2 x 2 run: $(cat "$T/err")"
 mpi 3 resume "$T/thick-ck" --no-plot --threads 1 >/dev/null 2>"$T/err" &&
   grep -q "resuming" "$T/err" || bad "resume of a 2 x 2 checkpoint on 3: $(cat "$T/err")"
 compare "$T/thick-1" "$T/thick-ck" "checkpoint of 2 x 2 processes resumed on 1 x 3"
