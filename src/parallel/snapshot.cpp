@@ -14,7 +14,7 @@ SubdomainVtuWriter::SubdomainVtuWriter(const SubdomainRun& run, const Lattice& w
 
 namespace {
 
-// Fills `buf` with count values of `width` bytes, value q from put(q, destination).
+// Fills `buf` with count items of per_item values of type T, item q from put(q, destination).
 template <class T, class Put>
 void fill(std::vector<char>& buf, index_t count, int per_item, Put&& put) {
   buf.resize(sizeof(T) * per_item * std::size_t{count});
