@@ -1,7 +1,8 @@
 // The subdomain scenario across real MPI ranks (mpirun -np P), on every grid of P processes
 // that fits the body: every rank steps its subdomain and exchanges its ghost nodes through
 // MPI; rank 0 also steps the whole body and compares every owned node's displacement, every
-// owned bar's history and the energies summed over the ranks, bit for bit.
+// owned bar's history and the energies summed over the ranks, bit for bit; and the body's
+// stable step computed by the ranks together against the whole body's.
 // Exit code 0 when all agree, 1 at the first difference.
 #include "parallel/comm.hpp"
 #include "subdomain_scenario.hpp"
@@ -20,6 +21,18 @@ int check(bool loaded, ProcessGrid grid) {
   Simulation whole = SubdomainScenario::whole(loaded);
   const Lattice& lat = whole.lattice();
   SubdomainRun run = SubdomainScenario::subdomain(grid, rank, whole.dt(), loaded);
+  // The body's stable step from the subdomains: the Lanczos iteration's dot products and the
+  // Gershgorin bound's maximum over the processes give one process's numbers, bit for bit.
+  const StableStep stable = distributed_stable_step(run, lat);
+  const StableStep& expected = whole.stable_step();
+  if (stable.omega_max != expected.omega_max || stable.omega_bound != expected.omega_bound ||
+      stable.iterations != expected.iterations) {
+    std::printf("mpi_check: %d x %d ranks: stable step omega_max %.17g, bound %.17g, %d "
+                "iterations against %.17g, %.17g, %d in one process\n",
+                grid.py, grid.pz, stable.omega_max, stable.omega_bound, stable.iterations,
+                expected.omega_max, expected.omega_bound, expected.iterations);
+    return 1;
+  }
   std::vector<double> buffers[4];
   for (int step = 0; step < SubdomainScenario::steps; ++step) {
     const bool report = step + 1 == SubdomainScenario::steps; // the last step reports energies
@@ -89,7 +102,8 @@ int check(bool loaded, ProcessGrid grid) {
     }
     if (!bad)
       std::printf("mpi_check: %s body, %d x %d ranks, %zu nodes, %zu bar histories and the %s "
-                  "energies identical to one process after %d steps (%llu bars broken)\n",
+                  "energies identical to one process after %d steps (%llu bars broken), and the "
+                  "stable step\n",
                   loaded ? "held, pulled and loaded" : "free", grid.py, grid.pz, nodes.size() / 4,
                   bars.size() / 2,
                   loaded ? "elastic and dissipated" : "elastic, dissipated and kinetic",

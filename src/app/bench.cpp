@@ -74,18 +74,19 @@ BenchResult run_bench(const BenchOptions& o) {
     r.dt = sim.dt();
     r.dt_stable = sim.stable_step().dt;
   } else {
-    // A subdomain per process (src/parallel/subdomain.hpp); all take the smallest of their
-    // steps.
+    // A subdomain per process (src/parallel/subdomain.hpp), stepped at the body's step.
     const ProcessGrid grid = resolve_grid(o.ny, o.nz, r.processes, {o.grid_y, o.grid_z});
     const Subdomain sub = make_subdomain(o.ny, o.nz, grid, process_rank());
     r.grid_y = grid.py;
     r.grid_z = grid.pz;
     Lattice lat(o.nx, sub.y.local_n(), sub.z.local_n(), kL);
     BarTable table(lat, bench_material());
+    opt.defer_time_step = true;
     SubdomainRun run(sub, std::move(lat), std::move(table), {}, opt);
     Simulation& sim = run.sim();
-    r.dt_stable = min_over_processes(sim.stable_step().dt);
-    sim.set_time_step(opt.step.safety * r.dt_stable);
+    const StableStep stable = distributed_stable_step(run, whole);
+    r.dt_stable = stable.dt;
+    sim.set_time_step(stable, opt.step.safety * r.dt_stable);
     sim.set_velocity(ramp(o.nx)); // v depends on x alone: local and global X agree
     std::vector<double> buffers[4];
     // Energies summed over the ranks' owned rows in the body's order (parallel/comm.hpp).

@@ -43,9 +43,6 @@ RunBody::RunBody(BuiltCase& c) : c_(c), dt_(c.sim->dt()) {
 
 RunBody::RunBody(BuiltCase& c, ProcessGrid grid, int rank)
     : c_(c), rank_(rank), ranks_(grid.py * grid.pz) {
-  double dt = c.sim ? c.sim->dt() : 0.0;
-  broadcast_from_first(&dt, 1);
-  dt_ = dt;
   const Lattice& whole = *c.lattice;
   const Subdomain sub = make_subdomain(whole.ny(), whole.nz(), grid, rank);
   Lattice local = window_lattice(sub, whole);
@@ -88,9 +85,17 @@ RunBody::RunBody(BuiltCase& c, ProcessGrid grid, int rank)
       precracked.push_back(local.bar(a.family, a.i, a.j - sub.y.w0, a.k - sub.z.w0));
   }
   std::sort(precracked.begin(), precracked.end());
+  SolverOptions options = c.options;
+  options.defer_time_step = true; // the body's step, below
   run_ = std::make_unique<SubdomainRun>(sub, std::move(local), std::move(table),
-                                        std::move(conditions), c.options, std::move(precracked));
-  run_->sim().set_time_step(dt_);
+                                        std::move(conditions), options, std::move(precracked));
+  // The body's stable step and dt, as one process finds them: the stiffest material of all
+  // windows for the paper's rule.
+  stable_ = distributed_stable_step(*run_, whole);
+  const double E_max = ldem::max_over_processes(run_->sim().table().ranges().E[1]);
+  dt_ =
+      time_step_by_rule(c.options.step, stable_, E_max, run_->sim().table().spec().rho, whole.L());
+  run_->sim().set_time_step(stable_, dt_);
   // The place of every process's energy rows in the body's order, found once: the rows of a
   // report come in rank order, each process's in its own order.
   EnergyRows rows;

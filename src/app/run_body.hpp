@@ -40,6 +40,7 @@ public:
   bool writes() const { return rank_ == 0; }
   const Lattice& lattice() const { return *c_.lattice; }
   double dt() const { return dt_; }
+  const StableStep& stable_step() const { return run_ ? stable_ : c_.sim->stable_step(); }
   std::uint64_t step_count() const;
   double time() const { return static_cast<double>(step_count()) * dt_; }
 
@@ -86,6 +87,7 @@ private:
   BuiltCase& c_;
   int rank_ = 0, ranks_ = 1;
   double dt_ = 0.0;
+  StableStep stable_; // the body's
   std::unique_ptr<SubdomainRun> run_;
   std::unique_ptr<LatticeVtuWriter> vtu_;             // one process
   std::unique_ptr<SubdomainVtuWriter> subdomain_vtu_; // distributed

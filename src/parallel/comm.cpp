@@ -1,5 +1,6 @@
 #include "parallel/comm.hpp"
 
+#include "energy/exact_sum.hpp"
 #include "util/error.hpp"
 
 #include <algorithm>
@@ -64,9 +65,12 @@ bool built_with_mpi() {
   return true;
 }
 
-void exchange_halos(SubdomainRun& run, std::vector<double> (&buf)[4]) {
-  if (!g_active)
-    return;
+namespace {
+// The two-phase exchange of a subdomain's ghost nodes: pack(axis, dir, out) fills the values to
+// send towards dir, unpack(axis, dir, in) takes those received from there.
+template <class Pack, class Unpack>
+void exchange(const SubdomainRun& run, std::vector<double> (&buf)[4], Pack&& pack,
+              Unpack&& unpack) {
   const Subdomain& sub = run.subdomain();
   // Along y first (the owned planes' rows), then along z (whole window planes, with the ghost
   // rows just received): the diagonal neighbours' nodes come through the second phase.
@@ -83,14 +87,49 @@ void exchange_halos(SubdomainRun& run, std::vector<double> (&buf)[4]) {
       buf[side].resize(size);
       MPI_Irecv(buf[side].data(), static_cast<int>(size), MPI_DOUBLE, other, axis, MPI_COMM_WORLD,
                 &req[n++]);
-      run.pack(axis, dir, buf[2 + side]);
+      pack(axis, dir, buf[2 + side]);
       MPI_Isend(buf[2 + side].data(), static_cast<int>(size), MPI_DOUBLE, other, axis,
                 MPI_COMM_WORLD, &req[n++]);
     }
     MPI_Waitall(n, req, MPI_STATUSES_IGNORE);
     for (int side = 0; side < 2; ++side)
       if (run.halo_size(axis, side == 0 ? -1 : +1) > 0)
-        run.unpack(axis, side == 0 ? -1 : +1, buf[side]);
+        unpack(axis, side == 0 ? -1 : +1, buf[side]);
+  }
+}
+} // namespace
+
+void exchange_halos(SubdomainRun& run, std::vector<double> (&buf)[4]) {
+  if (!g_active)
+    return;
+  exchange(
+      run, buf, [&](int axis, int dir, std::vector<double>& out) { run.pack(axis, dir, out); },
+      [&](int axis, int dir, const std::vector<double>& in) { run.unpack(axis, dir, in); });
+}
+
+void exchange_halos(const SubdomainRun& run, std::vector<double>& values,
+                    std::vector<double> (&buf)[4]) {
+  if (!g_active)
+    return;
+  exchange(
+      run, buf,
+      [&](int axis, int dir, std::vector<double>& out) { run.pack(axis, dir, values, out); },
+      [&](int axis, int dir, const std::vector<double>& in) { run.unpack(axis, dir, in, values); });
+}
+
+void sum_over_processes(ExactSum& sum) {
+  if (!g_active)
+    return;
+  double mine[ExactSum::kDoubles];
+  sum.write(mine);
+  std::vector<double> all(static_cast<std::size_t>(process_count()) * ExactSum::kDoubles);
+  MPI_Allgather(mine, ExactSum::kDoubles, MPI_DOUBLE, all.data(), ExactSum::kDoubles, MPI_DOUBLE,
+                MPI_COMM_WORLD);
+  sum = ExactSum{}; // every process adds the same parts: exact sums do not depend on the order
+  for (std::size_t r = 0; r < all.size(); r += ExactSum::kDoubles) {
+    ExactSum part;
+    part.read(all.data() + r);
+    sum.add(part);
   }
 }
 
@@ -265,6 +304,11 @@ void exchange_halos(SubdomainRun& run, std::vector<double> (&)[4]) {
   if (run.subdomain().ranks > 1)
     throw InputError("a subdomain of several ranks needs a build with MPI");
 }
+void exchange_halos(const SubdomainRun& run, std::vector<double>&, std::vector<double> (&)[4]) {
+  if (run.subdomain().ranks > 1)
+    throw InputError("a subdomain of several ranks needs a build with MPI");
+}
+void sum_over_processes(ExactSum&) {}
 std::vector<double> gather_on_first(const std::vector<double>& mine) {
   return mine;
 }
@@ -286,6 +330,24 @@ double max_over_processes(double x) {
 void barrier() {}
 
 #endif
+
+StableStep distributed_stable_step(SubdomainRun& run, const Lattice& whole) {
+  const Simulation& sim = run.sim();
+  const Lattice& local = sim.lattice();
+  StableStepParts parts;
+  parts.owned.resize(local.num_nodes());
+  parts.global_node.resize(local.num_nodes());
+  for (index_t n = 0; n < local.num_nodes(); ++n) {
+    parts.owned[n] = run.owns(n);
+    const NodeAddress a = run.global_address(n);
+    parts.global_node[n] = a.centre ? whole.centre(a.i, a.j, a.k) : whole.corner(a.i, a.j, a.k);
+  }
+  std::vector<double> buffers[4];
+  parts.exchange = [&](std::vector<double>& values) { exchange_halos(run, values, buffers); };
+  parts.sum = [](ExactSum& sum) { sum_over_processes(sum); };
+  parts.max = [](double x) { return max_over_processes(x); };
+  return compute_stable_step(local, sim.table(), sim.masses(), sim.held_dofs(), &parts);
+}
 
 EnergySums gather_energies(const SubdomainRun& run) {
   EnergyRows rows;

@@ -11,6 +11,8 @@
 
 namespace ldem {
 
+class ExactSum;
+
 // Initialises MPI for the life of main (when built with it); ranks beyond the first send
 // their standard output nowhere, so that a run prints once.
 class ProcessGroup {
@@ -29,6 +31,16 @@ bool built_with_mpi();
 // (non-blocking sends and receives, then the unpacking, per axis); `buffers` holds four
 // reusable vectors.
 void exchange_halos(SubdomainRun& run, std::vector<double> (&buffers)[4]);
+// The same for any 3 values per window node (node after node) in `values`.
+void exchange_halos(const SubdomainRun& run, std::vector<double>& values,
+                    std::vector<double> (&buffers)[4]);
+
+// The stable time step of the whole body (solver/stable_step.hpp), every process computing on
+// its subdomain: bit for bit one process's step of the body. Collective.
+StableStep distributed_stable_step(SubdomainRun& run, const Lattice& whole);
+
+// Every process's part added (exactly), on every process.
+void sum_over_processes(ExactSum& sum);
 
 // The whole body's elastic, dissipated and kinetic energy of the last report step, from
 // every rank's owned rows summed in the body's row order (their keys): the numbers one

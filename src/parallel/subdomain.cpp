@@ -388,9 +388,7 @@ void SubdomainRun::pack(int axis, int dir, std::vector<double>& out) const {
 }
 
 void SubdomainRun::unpack(int axis, int dir, const std::vector<double>& in) {
-  if (in.size() != halo_size(axis, dir))
-    throw InputError(fmt::format("halo from rank {}: {} values, expected {}",
-                                 sub_.neighbour(axis, dir), in.size(), halo_size(axis, dir)));
+  check_halo(axis, dir, in.size());
   const double* at = in.data();
   if (in.empty())
     return;
@@ -398,6 +396,35 @@ void SubdomainRun::unpack(int axis, int dir, const std::vector<double>& in) {
     sim_.assign_displacements(first, count, at);
     at += 3 * std::size_t{count};
   });
+}
+
+void SubdomainRun::pack(int axis, int dir, const std::vector<double>& values,
+                        std::vector<double>& out) const {
+  out.clear();
+  if (halo_size(axis, dir) == 0)
+    return;
+  for_each_halo_run(axis, send_index(axis, dir), [&](index_t first, index_t count) {
+    out.insert(out.end(), values.begin() + 3 * std::ptrdiff_t{first},
+               values.begin() + 3 * std::ptrdiff_t{first + count});
+  });
+}
+
+void SubdomainRun::unpack(int axis, int dir, const std::vector<double>& in,
+                          std::vector<double>& values) const {
+  check_halo(axis, dir, in.size());
+  const double* at = in.data();
+  if (in.empty())
+    return;
+  for_each_halo_run(axis, recv_index(axis, dir), [&](index_t first, index_t count) {
+    std::copy(at, at + 3 * std::size_t{count}, values.begin() + 3 * std::ptrdiff_t{first});
+    at += 3 * std::size_t{count};
+  });
+}
+
+void SubdomainRun::check_halo(int axis, int dir, std::size_t size) const {
+  if (size != halo_size(axis, dir))
+    throw InputError(fmt::format("halo from rank {}: {} values, expected {}",
+                                 sub_.neighbour(axis, dir), size, halo_size(axis, dir)));
 }
 
 } // namespace ldem

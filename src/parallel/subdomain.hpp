@@ -162,12 +162,17 @@ public:
   std::size_t halo_size(int axis, int dir) const;
   void pack(int axis, int dir, std::vector<double>& out) const;
   void unpack(int axis, int dir, const std::vector<double>& in);
+  // The same for any 3 values per window node (node after node) in `values`, instead of the
+  // displacements.
+  void pack(int axis, int dir, const std::vector<double>& values, std::vector<double>& out) const;
+  void unpack(int axis, int dir, const std::vector<double>& in, std::vector<double>& values) const;
 
 private:
   const AxisPart& part(int axis) const { return axis == 1 ? sub_.y : sub_.z; }
   // Local row (axis 1) or plane (axis 2) index sent towards dir, and received from it.
   index_t send_index(int axis, int dir) const;
   index_t recv_index(int axis, int dir) const;
+  void check_halo(int axis, int dir, std::size_t size) const; // throws on a wrong size
   // Calls visit(first local node, count) for each run of nodes exchanged at `index` along
   // `axis`, in a fixed order.
   template <class F> void for_each_halo_run(int axis, index_t index, F&& visit) const;

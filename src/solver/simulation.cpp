@@ -47,6 +47,41 @@ std::vector<double> lumped_masses(const Lattice& lat, double rho,
 
 } // namespace
 
+double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max, double rho,
+                         double L) {
+  // The bar wave speed of the stiffest material in the body: with a graded or random E the
+  // paper's rule is taken at the largest E, where the stable step is smallest.
+  const double c = std::sqrt(E_max / rho);
+  double dt = 0.0;
+  switch (step.rule) {
+  case TimeStep::Rule::Safety:
+    if (!(step.safety > 0.0 && step.safety <= 1.0))
+      throw InputError(fmt::format(
+          "time step safety fraction: expected a value in (0, 1], got {:g}", step.safety));
+    dt = step.safety * stable.dt;
+    break;
+  case TimeStep::Rule::Given:
+    dt = step.dt;
+    break;
+  case TimeStep::Rule::Paper:
+    if (!(step.courant > 0.0 && step.courant <= 1.0))
+      throw InputError(fmt::format("time step courant number: expected a value in (0, 1], got {:g}",
+                                   step.courant));
+    dt = step.courant * L / c;
+    break;
+  }
+  if (!(dt > 0.0) || !std::isfinite(dt))
+    throw InputError(fmt::format("time step: expected a positive dt in s, got {:g}", dt));
+  if (dt > stable.dt)
+    throw InputError(fmt::format(
+        "time step: dt = {:.4g} s ({:.3f} L/c{}) is above the stable limit {:.4g} s ({:.3f} L/c) "
+        "of this lattice (2 / largest eigenfrequency of M^-1 K); use dt <= {:.4g} s or a safety "
+        "fraction",
+        dt, dt * c / L, step.rule == TimeStep::Rule::Paper ? ", the paper's rule" : "", stable.dt,
+        stable.dt * c / L, stable.dt));
+  return dt;
+}
+
 Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
                        SolverOptions options, std::vector<index_t> precracked)
     : lat_(std::move(lattice)), table_(std::move(table)), cond_(std::move(conditions)),
@@ -99,38 +134,10 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     for (index_t n = 0; n < nn; ++n)
       held_[n] |= bit;
   }
-  stable_ = compute_stable_step(lat_, table_, mass_, held_);
-  // The bar wave speed of the stiffest material in the body: with a graded or random E the
-  // paper's rule is taken at the largest E, where the stable step is smallest.
-  const double c = std::sqrt(table_.ranges().E[1] / table_.spec().rho);
-  switch (opt_.step.rule) {
-  case TimeStep::Rule::Safety:
-    if (!(opt_.step.safety > 0.0 && opt_.step.safety <= 1.0))
-      throw InputError(fmt::format(
-          "time step safety fraction: expected a value in (0, 1], got {:g}", opt_.step.safety));
-    dt_ = opt_.step.safety * stable_.dt;
-    break;
-  case TimeStep::Rule::Given:
-    dt_ = opt_.step.dt;
-    break;
-  case TimeStep::Rule::Paper:
-    if (!(opt_.step.courant > 0.0 && opt_.step.courant <= 1.0))
-      throw InputError(fmt::format("time step courant number: expected a value in (0, 1], got {:g}",
-                                   opt_.step.courant));
-    dt_ = opt_.step.courant * lat_.L() / c;
-    break;
+  if (!opt_.defer_time_step) {
+    stable_ = compute_stable_step(lat_, table_, mass_, held_);
+    dt_ = time_step_by_rule(opt_.step, stable_, table_.ranges().E[1], table_.spec().rho, lat_.L());
   }
-  if (!(dt_ > 0.0) || !std::isfinite(dt_))
-    throw InputError(fmt::format("time step: expected a positive dt in s, got {:g}", dt_));
-  if (dt_ > stable_.dt)
-    throw InputError(fmt::format(
-        "time step: dt = {:.4g} s ({:.3f} L/c{}) is above the stable limit {:.4g} s ({:.3f} L/c) "
-        "of this lattice (2 / largest eigenfrequency of M^-1 K); use dt <= {:.4g} s or a safety "
-        "fraction",
-        dt_, dt_ * c / lat_.L(),
-        opt_.step.rule == TimeStep::Rule::Paper ? ", the paper's rule" : "", stable_.dt,
-        stable_.dt * c / lat_.L(), stable_.dt));
-
   if (!cond_.loads.empty()) {
     px_.assign(nn, 0.0);
     py_.assign(nn, 0.0);
@@ -263,6 +270,13 @@ void Simulation::mark_damaged_rows() {
   }
 }
 
+void Simulation::set_time_step(const StableStep& stable, double dt) {
+  if (step_ != 0)
+    throw InputError("time step: dt can only change before the first step");
+  stable_ = stable;
+  set_time_step(dt);
+}
+
 void Simulation::set_time_step(double dt) {
   if (step_ != 0)
     throw InputError("time step: dt can only change before the first step");
@@ -271,7 +285,8 @@ void Simulation::set_time_step(double dt) {
                                  "got {:g}",
                                  stable_.dt, dt));
   for (index_t n = 0; n < lat_.num_nodes(); ++n) {
-    const Vec3 v = half_step_velocity(n);
+    // (Before a deferred dt is first set, the nodes are at rest.)
+    const Vec3 v = dt_ > 0.0 ? half_step_velocity(n) : Vec3{0, 0, 0};
     wx_[n] = ux_[n] - dt * v.x;
     wy_[n] = uy_[n] - dt * v.y;
     wz_[n] = uz_[n] - dt * v.z;

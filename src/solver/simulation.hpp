@@ -68,7 +68,16 @@ struct TimeStep {
 struct SolverOptions {
   TimeStep step;
   double damping = 0.0; // mass-proportional damping coefficient a [1/s], C = a M
+  // The stable step and dt are given later (set_time_step with a StableStep): a distributed
+  // run's window, whose step is the whole body's.
+  bool defer_time_step = false;
 };
+
+// dt by the rule of `step`: a fraction of the stable step, given, or the paper's Courant
+// number at the bar wave speed of the stiffest material, sqrt(E_max / rho). Throws InputError
+// for a rule's bad value or a dt that is not positive or above the stable limit.
+double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max, double rho,
+                         double L);
 
 struct Event {
   index_t bar;
@@ -108,6 +117,12 @@ public:
   // on the smallest of their ranks' steps). Throws InputError after the first step, or for a
   // dt that is not positive or above the stable limit.
   void set_time_step(double dt);
+  // The same, with the stable step it is checked against (a run built with
+  // SolverOptions::defer_time_step).
+  void set_time_step(const StableStep& stable, double dt);
+  // The masses and held DOF of every node (what the stable step is computed from).
+  const std::vector<double>& masses() const { return mass_; }
+  const std::vector<DofMask>& held_dofs() const { return held_; }
 
   // Initial velocities (before the first step), e.g. a ramp; taken as v_{-1/2}.
   void set_velocity(const std::function<Vec3(Vec3 X)>& v_of_X);

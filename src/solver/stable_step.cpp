@@ -1,5 +1,6 @@
 #include "solver/stable_step.hpp"
 
+#include "energy/exact_sum.hpp"
 #include "util/parallel.hpp"
 
 #include <algorithm>
@@ -77,43 +78,102 @@ double tridiagonal_max_eigenvalue(const std::vector<double>& a, const std::vecto
 
 StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
                                const std::vector<double>& mass,
-                               const std::vector<unsigned char>& held) {
-  auto free_dof = [&](index_t node, int d) {
-    return held.empty() || !(held[node] & (1u << d)) ? 1.0 : 0.0;
-  };
+                               const std::vector<unsigned char>& held_given,
+                               const StableStepParts* parts) {
   const std::vector<double> kb = bar_stiffness(lat, table);
-  const std::vector<NodeRow> rows = node_rows(lat);
-  const std::int64_t nrows = static_cast<std::int64_t>(rows.size());
   const std::size_t n = lat.num_nodes();
-  std::vector<double> rsm(n); // 1 / sqrt(m)
-  for (std::size_t i = 0; i < n; ++i)
+  // The rows of nodes this process owns (a row along x is never split between processes).
+  std::vector<NodeRow> rows = node_rows(lat);
+  if (parts)
+    rows.erase(std::remove_if(rows.begin(), rows.end(),
+                              [&](const NodeRow& r) { return !parts->owned[r.first]; }),
+               rows.end());
+  const std::int64_t nrows = static_cast<std::int64_t>(rows.size());
+  // 1 / sqrt(m) and the held DOF of every node; a ghost node's from its owner.
+  std::vector<double> rsm(n);
+  std::vector<unsigned char> held(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
     rsm[i] = 1.0 / std::sqrt(mass[i]);
-
-  // y = M^-1/2 K M^-1/2 x, gathered per node (x, y interleaved: 3 per node).
-  auto apply = [&](const std::vector<double>& x, std::vector<double>& y) {
+    held[i] = held_given.empty() ? 0 : held_given[i];
+  }
+  if (parts) {
+    std::vector<double> v(3 * n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      v[3 * i] = rsm[i];
+      v[3 * i + 1] = held[i];
+    }
+    parts->exchange(v);
+    for (std::size_t i = 0; i < n; ++i) {
+      rsm[i] = v[3 * i];
+      held[i] = static_cast<unsigned char>(v[3 * i + 1]);
+    }
+  }
+  auto free_dof = [&](index_t node, int d) { return held[node] & (1u << d) ? 0.0 : 1.0; };
+  // Calls f(node) for the nodes of the owned rows, row by row (threads share the rows).
+  auto for_owned = [&](auto&& f) {
 #pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
-    for (std::int64_t r = 0; r < nrows; ++r) {
+    for (std::int64_t r = 0; r < nrows; ++r)
+      f(rows[r]);
+  };
+
+  // y = M^-1/2 K M^-1/2 x on the owned nodes (x, y interleaved: 3 per node), gathered per node
+  // from M^-1/2 x on the free DOF (a ghost node's from its owner).
+  std::vector<double> scaled(3 * n, 0.0);
+  auto apply = [&](const std::vector<double>& x, std::vector<double>& y) {
+    for_owned([&](const NodeRow& row) {
+      for (index_t i = 0; i < row.length; ++i) {
+        const index_t node = row.first + i;
+        for (int d = 0; d < 3; ++d)
+          scaled[3 * node + d] = x[3 * node + d] * rsm[node] * free_dof(node, d);
+      }
+    });
+    if (parts)
+      parts->exchange(scaled);
+    for_owned([&](const NodeRow& row) {
       RowLink links[kMaxRowLinks];
-      const int nl = row_links(lat, rows[r], links);
-      for (index_t i = 0; i < rows[r].length; ++i) {
-        const index_t node = rows[r].first + i;
+      const int nl = row_links(lat, row, links);
+      for (index_t i = 0; i < row.length; ++i) {
+        const index_t node = row.first + i;
         double acc[3] = {0, 0, 0};
         for_each_bar_of(i, links, nl, kb, [&](index_t other, const double* e, double k) {
           double proj = 0.0;
           for (int d = 0; d < 3; ++d)
-            proj += e[d] * (x[3 * node + d] * rsm[node] * free_dof(node, d) -
-                            x[3 * other + d] * rsm[other] * free_dof(other, d));
+            proj += e[d] * (scaled[3 * node + d] - scaled[3 * other + d]);
           for (int d = 0; d < 3; ++d)
             acc[d] += k * proj * e[d];
         });
         for (int d = 0; d < 3; ++d)
           y[3 * node + d] = acc[d] * rsm[node] * free_dof(node, d);
       }
-    }
+    });
   };
+  // a . b over the owned nodes: each row's products added in order along it, the rows' sums
+  // exactly (and with the other processes' rows), whatever their order.
+  std::vector<double> row_sums(rows.size());
   auto dot = [&](const std::vector<double>& a, const std::vector<double>& b) {
-    return deterministic_sum(static_cast<std::int64_t>(a.size()),
-                             [&](std::int64_t i) { return a[i] * b[i]; });
+#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
+    for (std::int64_t r = 0; r < nrows; ++r) {
+      double s = 0.0;
+      const std::size_t q0 = 3 * std::size_t{rows[r].first};
+      for (std::size_t q = q0; q < q0 + 3 * std::size_t{rows[r].length}; ++q)
+        s += a[q] * b[q];
+      row_sums[r] = s;
+    }
+    // Scaled by a power of two below the largest row's sum of all processes, into the fixed
+    // point's range (ExactSum is made for energies in J; these sums can reach 1e30).
+    double largest = 0.0;
+    for (double s : row_sums)
+      largest = std::max(largest, std::abs(s));
+    if (parts)
+      largest = parts->max(largest);
+    int e = 0;
+    std::frexp(largest, &e);
+    ExactSum total;
+    for (double s : row_sums)
+      total.add(std::ldexp(s, -e));
+    if (parts)
+      parts->sum(total);
+    return std::ldexp(total.value(), e);
   };
 
   StableStep out;
@@ -140,18 +200,24 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
                                       std::abs(diag[p][2]) + off[p]);
     }
   }
+  if (parts)
+    bound = parts->max(bound);
   out.omega_bound = std::sqrt(bound);
   out.dt_bound = 2.0 / out.omega_bound;
 
-  // Lanczos with a deterministic start vector.
-  std::vector<double> q(3 * n), q_prev(3 * n, 0.0), w(3 * n);
-  std::uint64_t seed = 0x9E3779B97F4A7C15ull;
-  for (std::size_t i = 0; i < q.size(); ++i) {
-    seed ^= seed << 13;
-    seed ^= seed >> 7;
-    seed ^= seed << 17;
-    q[i] = (static_cast<double>(seed >> 11) * 0x1.0p-53 - 0.5) *
-           free_dof(static_cast<index_t>(i / 3), static_cast<int>(i % 3));
+  // Lanczos from a start vector drawn per DOF of the body (a hash of its number), the same
+  // whichever process holds the node.
+  std::vector<double> q(3 * n), q_prev(3 * n, 0.0), w(3 * n, 0.0);
+  for (std::size_t node = 0; node < n; ++node) {
+    const std::uint64_t g = parts ? parts->global_node[node] : node;
+    for (int d = 0; d < 3; ++d) {
+      std::uint64_t z = (3 * g + static_cast<std::uint64_t>(d) + 1) * 0x9E3779B97F4A7C15ull;
+      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+      z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+      z ^= z >> 31;
+      q[3 * node + d] = (static_cast<double>(z >> 11) * 0x1.0p-53 - 0.5) *
+                        free_dof(static_cast<index_t>(node), d);
+    }
   }
   const double q_norm = std::sqrt(dot(q, q));
   for (double& v : q)
