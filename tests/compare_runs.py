@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Compares the output folders of two runs of one case (for instance one process and several):
 every file must be byte for byte the same, energy.csv included, except summary.json, where the
-wall time, the rate, the threads, the processes and their grid may differ (every other entry
+wall time, the rate, the threads, the processes, their grid and the memory per module may differ (every other entry
 the same). The checkpoint folder, if any, is not compared.
 
 usage: compare_runs.py DIR_A DIR_B      exits non-zero with a message on the first difference
@@ -10,7 +10,8 @@ import json
 import os
 import sys
 
-VARYING = {"wall_s", "bar_updates_per_s", "threads", "processes", "process_grid"}
+VARYING = {"wall_s", "bar_updates_per_s", "threads", "processes", "process_grid",
+           "bytes_per_module"}
 
 
 def fail(msg):

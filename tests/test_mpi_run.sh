@@ -72,12 +72,18 @@ for np in "$@"; do
 done
 "$LDEM" run "$T/graded.toml" --out "$T/ck-1" --no-plot --threads 1 --checkpoint-every 150 \
   >/dev/null 2>&1
+# The checkpoint file is the same bytes whoever wrote it (each process writes its nodes and
+# bars at their places, io/checkpoint.hpp).
+for np in "$@"; do
+  cmp -s "$T/ck-1/checkpoint/state.ckpt" "$T/ck-$np/checkpoint/state.ckpt" ||
+    bad "the checkpoint of $np processes differs from one process's"
+done
 np=${!#}
 mpi "$np" resume "$T/ck-1" --no-plot --threads 1 >/dev/null 2>"$T/err" || bad "resume of one process's checkpoint on $np: $(cat "$T/err")"
 compare "$T/graded-1" "$T/ck-1" "checkpoint of one process resumed on $np"
 
 # Ctrl-C: mpirun passes it on to the processes (as SIGTERM), which agree on a step, write the
-# whole body's checkpoint and stop; resumed on another number of processes, the folder is the
+# body's checkpoint and stop; resumed on another number of processes, the folder is the
 # uninterrupted run's.
 sed 's/^end = .*/end = 60.0e-6/' "$SRC/cases/fgm_plate/graded_modulus_toughness.toml" >"$T/long.toml"
 "$LDEM" run "$T/long.toml" --out "$T/long-1" --no-plot --threads 1 >/dev/null 2>&1
@@ -125,6 +131,20 @@ rc=$?
 if [ $rc -ne 2 ] || [ "$(grep -c "material.E: expected a number" "$T/err")" -ne 1 ] || [ -e "$T/typo" ]; then
   bad "a bad case on 2 processes: rc $rc, $(cat "$T/err")"
 fi
+# Errors about the whole body, found by the processes together (no process holds it): K_r < 1
+# in every bar and a time.end shorter than the step. The message is one process's, word for
+# word.
+sed 's/^Gf = .*/Gf = 0.5/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/brittle.toml"
+sed 's/^end = .*/end = 1.0e-12/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/short.toml"
+for c in brittle short; do
+  "$LDEM" run "$T/$c.toml" --out "$T/$c-1" --no-plot >/dev/null 2>"$T/err1"
+  mpi 3 run "$T/$c.toml" --out "$T/$c-3" --no-plot >/dev/null 2>"$T/err"
+  rc=$?
+  if [ $rc -ne 2 ] || [ "$(grep -c "ldem: error" "$T/err")" -ne 1 ] || [ -e "$T/$c-3" ] ||
+    [ "$(grep "ldem: error" "$T/err")" != "$(grep "ldem: error" "$T/err1")" ]; then
+    bad "the $c case on 3 processes: rc $rc, $(cat "$T/err") against $(cat "$T/err1")"
+  fi
+done
 
 if [ $fails -ne 0 ]; then echo "$fails failures"; exit 1; fi
 echo "all distributed runs agree with one process"

@@ -3,6 +3,7 @@
 #include "analysis/crack.hpp"
 #include "analysis/fatigue.hpp"
 #include "app/run_body.hpp"
+#include "io/checkpoint.hpp"
 #include "io/output.hpp"
 #include "parallel/comm.hpp"
 #include "solver/modes.hpp"
@@ -162,16 +163,28 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
   } catch (const InputError& e) {
     throw InputError(fmt::format("{}: {}", path, e.what()));
   }
-  if (c.sim && !(s.end_time >= c.sim->dt()))
-    throw InputError(fmt::format("{}: time.end: expected at least one time step ({:.4g} s), got "
-                                 "{:g} s",
-                                 path, c.sim->dt(), s.end_time));
+  c.path = path;
+  if (c.sim)
+    check_end_time(c, c.sim->dt());
   return c;
 }
 
-std::string resolved_case_toml(const BuiltCase& c) {
+void check_end_time(const BuiltCase& c, double dt) {
+  if (!(c.spec.end_time >= dt))
+    throw InputError(fmt::format("{}: time.end: expected at least one time step ({:.4g} s), got "
+                                 "{:g} s",
+                                 c.path, dt, c.spec.end_time));
+}
+
+BodyNumbers body_numbers(const Simulation& sim) {
+  return {sim.table().ranges(),   sim.table().ductility_summary(),
+          sim.stable_step(),      sim.dt(),
+          sim.bytes_per_module(), sim.table().per_bar()};
+}
+
+std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
   const CaseSpec& s = c.spec;
-  const Simulation& sim = *c.sim;
+  const Lattice& lat = *c.lattice;
   auto vec = [](Vec3 v) { return toml::array{v.x, v.y, v.z}; };
   toml::table root;
   root.insert("case", toml::table{{"title", s.title}});
@@ -217,7 +230,7 @@ std::string resolved_case_toml(const BuiltCase& c) {
     }
   if (!fields_table.empty())
     root.insert("fields", fields_table);
-  const MaterialRanges& mr = sim.table().ranges();
+  const MaterialRanges& mr = body.ranges;
   mat.insert("rule", mr.rule);
   mat.insert("E_range", toml::array{mr.E[0], mr.E[1]});
   mat.insert("Gf_range", toml::array{mr.Gf[0], mr.Gf[1]});
@@ -325,7 +338,7 @@ std::string resolved_case_toml(const BuiltCase& c) {
                                   {"rule", rule},
                                   {"safety", s.step.safety},
                                   {"courant", s.step.courant},
-                                  {"dt", sim.dt()},
+                                  {"dt", body.dt},
                                   {"damping", s.damping}});
   if (s.stop_displacement > 0)
     root["time"].as_table()->insert("stop_displacement", s.stop_displacement);
@@ -357,25 +370,24 @@ std::string resolved_case_toml(const BuiltCase& c) {
       an.insert("fatigue_width", s.analysis.fatigue_width);
     root.insert("analysis", an);
   }
-  const DuctilitySummary& k = sim.table().ductility_summary();
+  const DuctilitySummary& k = body.ductility;
   // c of the stiffest bars, as the paper's step rule takes it.
-  const double c_bar = std::sqrt(sim.table().ranges().E[1] / s.material.rho);
+  const double c_bar = std::sqrt(body.ranges.E[1] / s.material.rho);
   root.insert("resolved",
-              toml::table{{"nodes", static_cast<std::int64_t>(sim.lattice().num_nodes())},
-                          {"bars", static_cast<std::int64_t>(sim.lattice().num_bars())},
-                          {"steps", static_cast<std::int64_t>(std::ceil(s.end_time / sim.dt()))},
-                          {"dt", sim.dt()},
-                          {"dt_over_L_c", sim.dt() * c_bar / s.L},
-                          {"dt_stable", sim.stable_step().dt},
-                          {"dt_stable_over_L_c", sim.stable_step().dt * c_bar / s.L},
-                          {"dt_proven_bound", sim.stable_step().dt_bound},
+              toml::table{{"nodes", static_cast<std::int64_t>(lat.num_nodes())},
+                          {"bars", static_cast<std::int64_t>(lat.num_bars())},
+                          {"steps", static_cast<std::int64_t>(std::ceil(s.end_time / body.dt))},
+                          {"dt", body.dt},
+                          {"dt_over_L_c", body.dt * c_bar / s.L},
+                          {"dt_stable", body.stable.dt},
+                          {"dt_stable_over_L_c", body.stable.dt * c_bar / s.L},
+                          {"dt_proven_bound", body.stable.dt_bound},
                           {"K_r_normal_min", k.kr_min_normal},
                           {"K_r_normal_max", k.kr_max_normal},
                           {"K_r_diagonal_min", k.kr_min_diag},
                           {"K_r_diagonal_max", k.kr_max_diag},
                           {"L_cr", k.L_cr_min},
-                          {"precracked_bars", static_cast<std::int64_t>(c.precracked.size())},
-                          {"bytes_per_module", sim.bytes_per_module()}});
+                          {"precracked_bars", static_cast<std::int64_t>(c.precracked.size())}});
   std::ostringstream os;
   os << "# The case as run: every default and derived value ([resolved]).\n" << root << "\n";
   return os.str();
@@ -385,7 +397,7 @@ int check_command(const std::string& path) {
   const BuiltCase c = build_case(path);
   for (const std::string& w : c.warnings)
     fmt::print(stderr, "ldem: warning: {}\n", w);
-  fmt::print("{}", resolved_case_toml(c));
+  fmt::print("{}", resolved_case_toml(c, body_numbers(*c.sim)));
   fmt::print(stderr, "{}: valid ({} nodes, {} bars, dt = {:.4g} s of a stable {:.4g} s)\n", path,
              c.sim->lattice().num_nodes(), c.sim->lattice().num_bars(), c.sim->dt(),
              c.sim->stable_step().dt);
@@ -487,7 +499,9 @@ namespace {
 
 // Makes the output folder ready, after the case has been validated: it must be new or empty
 // (or `force`), and writable. Nothing is created or changed when this throws.
-void prepare_output(const std::string& dir, bool force) {
+// Checks that `dir` can take a run's outputs (a folder that is empty, or --force), and with
+// `create` makes it if it does not exist yet.
+void prepare_output(const std::string& dir, bool force, bool create = true) {
   std::error_code ec;
   if (fs::exists(dir, ec)) {
     if (!fs::is_directory(dir, ec))
@@ -504,6 +518,8 @@ void prepare_output(const std::string& dir, bool force) {
     fs::remove(probe, ec);
     return;
   }
+  if (!create)
+    return;
   if (!fs::create_directories(dir, ec) || ec)
     throw InputError(fmt::format("--out {}: cannot create the folder ({})", dir,
                                  ec ? ec.message() : "unknown reason"));
@@ -545,16 +561,6 @@ private:
 
 namespace {
 
-constexpr char kCheckpointMagic[8] = {'L', 'D', 'E', 'M', 'C', 'K', 'P', 'T'};
-constexpr std::uint32_t kCheckpointVersion = 2;
-
-std::uint64_t fnv1a(const char* p, std::size_t n) {
-  std::uint64_t h = 0xcbf29ce484222325ull;
-  for (std::size_t i = 0; i < n; ++i)
-    h = (h ^ static_cast<unsigned char>(p[i])) * 0x100000001b3ull;
-  return h;
-}
-
 std::string read_all(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in)
@@ -575,100 +581,45 @@ struct RunState {
   std::uint64_t lengths[3] = {0, 0, 0}; // bytes of energy.csv, events.csv, probes.csv
 };
 
-template <class T> void put(std::string& out, const T& v) {
-  out.append(reinterpret_cast<const char*>(&v), sizeof v);
-}
-void put_str(std::string& out, const std::string& s) {
-  put(out, static_cast<std::uint64_t>(s.size()));
-  out += s;
-}
-template <class T> void get(const std::string& in, std::size_t& pos, T& v) {
-  if (pos + sizeof v > in.size())
-    throw InputError("checkpoint: truncated");
-  std::memcpy(&v, in.data() + pos, sizeof v);
-  pos += sizeof v;
-}
-std::string get_str(const std::string& in, std::size_t& pos) {
-  std::uint64_t n = 0;
-  get(in, pos, n);
-  if (pos + n > in.size())
-    throw InputError("checkpoint: truncated");
-  std::string s = in.substr(pos, n);
-  pos += n;
-  return s;
-}
-
-// DIR/checkpoint/state.ckpt: magic, version, payload size, payload checksum, payload. Written
-// to a temporary name and renamed over the previous one only when complete.
-void write_checkpoint(const std::string& dir, const RunState& st, const Simulation& sim) {
-  std::string payload;
-  put_str(payload, st.case_path);
-  put(payload, st.case_hash);
-  put(payload, st.next);
-  put(payload, static_cast<std::uint64_t>(st.snapshots.size()));
+// The run's state as a checkpoint's meta (io/checkpoint.hpp), and back.
+std::string run_state_bytes(const RunState& st) {
+  using checkpoint::put;
+  std::string meta;
+  checkpoint::put_str(meta, st.case_path);
+  put(meta, st.case_hash);
+  put(meta, st.next);
+  put(meta, static_cast<std::uint64_t>(st.snapshots.size()));
   for (const auto& [t, name] : st.snapshots) {
-    put(payload, t);
-    put_str(payload, name);
+    put(meta, t);
+    checkpoint::put_str(meta, name);
   }
-  put(payload, st.n_soft);
-  put(payload, st.n_broken);
-  put(payload, st.max_balance);
+  put(meta, st.n_soft);
+  put(meta, st.n_broken);
+  put(meta, st.max_balance);
   for (std::uint64_t l : st.lengths)
-    put(payload, l);
-  sim.save_state(payload);
-  std::string file(kCheckpointMagic, 8);
-  put(file, kCheckpointVersion);
-  put(file, static_cast<std::uint64_t>(payload.size()));
-  put(file, fnv1a(payload.data(), payload.size()));
-  file += payload;
-  fs::create_directories(dir + "checkpoint");
-  write_file(dir + "checkpoint/state.ckpt", file);
+    put(meta, l);
+  return meta;
 }
 
-// Reads a checkpoint: refuses a truncated or corrupt file, another format version, or a case
-// file changed since. Returns the run state; `payload` and `pos` then hold the simulation's.
-RunState read_checkpoint(const std::string& path, std::string& payload, std::size_t& pos) {
-  std::string file;
-  try {
-    file = read_all(path);
-  } catch (const InputError&) {
-    throw InputError(fmt::format("{}: no checkpoint to resume from", path));
-  }
-  std::size_t p = 0;
-  if (file.size() < 28 || file.compare(0, 8, std::string(kCheckpointMagic, 8)) != 0)
-    throw InputError(fmt::format("{}: not an ldem checkpoint (or truncated)", path));
-  p = 8;
-  std::uint32_t version = 0;
-  std::uint64_t size = 0, sum = 0;
-  get(file, p, version);
-  get(file, p, size);
-  get(file, p, sum);
-  if (version != kCheckpointVersion)
-    throw InputError(fmt::format("{}: checkpoint format version {}, this ldem reads version {}",
-                                 path, version, kCheckpointVersion));
-  if (file.size() - p != size)
-    throw InputError(fmt::format("{}: truncated checkpoint ({} bytes of payload, {} expected)",
-                                 path, file.size() - p, size));
-  payload = file.substr(p);
-  if (fnv1a(payload.data(), payload.size()) != sum)
-    throw InputError(fmt::format("{}: checkpoint checksum mismatch: the file is corrupt", path));
-  pos = 0;
+RunState parse_run_state(const std::string& meta) {
+  using checkpoint::get;
+  std::size_t pos = 0;
   RunState st;
-  st.case_path = get_str(payload, pos);
-  get(payload, pos, st.case_hash);
-  get(payload, pos, st.next);
+  st.case_path = checkpoint::get_str(meta, pos);
+  get(meta, pos, st.case_hash);
+  get(meta, pos, st.next);
   std::uint64_t ns = 0;
-  get(payload, pos, ns);
+  get(meta, pos, ns);
   for (std::uint64_t i = 0; i < ns; ++i) {
     double t = 0;
-    get(payload, pos, t);
-    st.snapshots.emplace_back(t, get_str(payload, pos));
+    get(meta, pos, t);
+    st.snapshots.emplace_back(t, checkpoint::get_str(meta, pos));
   }
-  get(payload, pos, st.n_soft);
-  get(payload, pos, st.n_broken);
-  get(payload, pos, st.max_balance);
+  get(meta, pos, st.n_soft);
+  get(meta, pos, st.n_broken);
+  get(meta, pos, st.max_balance);
   for (std::uint64_t& l : st.lengths)
-    get(payload, pos, l);
+    get(meta, pos, l);
   return st;
 }
 
@@ -724,18 +675,22 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       row += fmt::format(",{:.9g}", v);
     probes->write(row + "\n");
   };
-  auto checkpoint = [&](std::uint64_t next) {
-    const Simulation* whole = body.whole(true);
-    if (!writes)
-      return;
-    energy->flush();
-    events->flush();
-    probes->flush();
-    st.next = next;
-    st.lengths[0] = energy->size();
-    st.lengths[1] = events->size();
-    st.lengths[2] = probes->size();
-    write_checkpoint(dir, st, *whole);
+  auto save_checkpoint = [&](std::uint64_t next) {
+    std::string meta;
+    if (writes) {
+      energy->flush();
+      events->flush();
+      probes->flush();
+      st.next = next;
+      st.lengths[0] = energy->size();
+      st.lengths[1] = events->size();
+      st.lengths[2] = probes->size();
+      meta = run_state_bytes(st);
+      fs::create_directories(dir + "checkpoint");
+    }
+    if (body.distributed())
+      barrier(); // the folder exists before the processes open the file
+    body.write_checkpoint(dir + "checkpoint/state.ckpt", meta);
   };
 
   // The snapshot writer prepares what does not change during the run (connectivity, fields)
@@ -769,7 +724,7 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
                                                 std::chrono::steady_clock::now() - last_checkpoint)
                                                     .count() > checkpoint_seconds) != 0;
     if (save) {
-      checkpoint(n);
+      save_checkpoint(n);
       last_checkpoint = std::chrono::steady_clock::now();
     }
     // Every 10 steps, a look for a numerical blow-up (a NaN, or displacements beyond any
@@ -781,9 +736,9 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       const index_t bad = body.first_node_beyond(limit);
       if (bad < lat.num_nodes()) {
         blew_up = true;
-        const Simulation* whole = body.whole(false);
+        const Vec3 u = body.displacement(bad);
         if (writes) {
-          const Vec3 x = lat.position(bad), u = whole->displacement(bad);
+          const Vec3 x = lat.position(bad);
           blow_up = fmt::format("numerical blow-up detected at step {} (t = {:.6g} s): node {} "
                                 "at ({:g}, {:g}, {:g}) m has displacement ({:g}, {:g}, {:g}) m. "
                                 "Check the case's loads, velocities and material values; the "
@@ -833,17 +788,15 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
     }
   }
   if (signal)
-    checkpoint(n);
+    save_checkpoint(n);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const Simulation* whole = body.whole(false); // the final state, for the summary
+  const auto [softened, broken] = body.softening_and_broken(); // the final state
   if (!writes) // the first process reports; the others end with its exit code
     return blew_up ? 3 : signal == SIGTERM ? 143 : signal ? 130 : 0;
-  const Simulation& sim = *whole;
   energy->commit();
   events->commit();
   probes->commit();
   const std::uint64_t done = n - first;
-  const std::uint64_t softened = sim.softening_count(), broken = sim.broken_count();
   const ProcessGrid grid = body.grid();
   write_file(
       dir + "summary.json",
@@ -851,15 +804,16 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
                   "  \"bars\": {},\n  \"steps\": {},\n  \"dt\": {:.9g},\n"
                   "  \"dt_stable\": {:.9g},\n  \"end_time\": {:.9g},\n  \"wall_s\": {:.4f},\n"
                   "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n  \"processes\": {},\n"
-                  "  \"process_grid\": [1, {}, {}],\n"
+                  "  \"process_grid\": [1, {}, {}],\n  \"bytes_per_module\": {:.1f},\n"
                   "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
                   "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
                   "  \"interrupted\": {},\n  \"stopped_by\": {},\n  \"analysis\": {{}}\n}}\n",
-                  st.case_path, s.title, lat.num_nodes(), lat.num_bars(), n, sim.dt(),
-                  sim.stable_step().dt, sim.time(), wall,
+                  st.case_path, s.title, lat.num_nodes(), lat.num_bars(), n, body.dt(),
+                  body.stable_step().dt, body.time(), wall,
                   static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
-                  omp_get_max_threads(), process_count(), grid.py, grid.pz, st.max_balance,
-                  softened, broken, c.precracked.size(), signal ? "true" : "false",
+                  omp_get_max_threads(), process_count(), grid.py, grid.pz,
+                  body.numbers().bytes_per_module, st.max_balance, softened, broken,
+                  c.precracked.size(), signal ? "true" : "false",
                   stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\""));
   if (!blow_up.empty()) {
     fmt::print(stderr, "ldem: error: {}\n", blow_up);
@@ -869,7 +823,7 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
     fmt::print(stderr,
                "ldem: stopped by {} at t = {:.4g} s (step {}); outputs complete up to then and "
                "a checkpoint in {}/checkpoint. Continue with: ldem resume {}{}\n",
-               signal == SIGTERM ? "SIGTERM" : "SIGINT", sim.time(), n, out_dir, out_dir,
+               signal == SIGTERM ? "SIGTERM" : "SIGINT", body.time(), n, out_dir, out_dir,
                body.distributed() ? " (or under mpirun, with any number of processes)" : "");
     return signal == SIGTERM ? 143 : 130;
   }
@@ -916,28 +870,6 @@ bool agreed(const std::function<void()>& setup) {
   return false;
 }
 
-// The whole body's material fields per bar (every bar up to 2 million, else a regular
-// sample), for fields.png and for the user's own statistics.
-void write_fields(const Simulation& sim, const std::string& dir) {
-  const Lattice& lat = sim.lattice();
-  const index_t stride = std::max<index_t>(1, lat.num_bars() / 2000000 + 1);
-  OutputFile fields(dir + "fields.csv");
-  fields.write("bar,x,y,z,E,Gf,e_p,e_r\n");
-  std::string rows;
-  for (index_t b = 0; b < lat.num_bars(); b += stride) {
-    const BarTable::Properties p = sim.table().properties(lat, b);
-    const Vec3 mid = lat.bar_centre(b);
-    rows += fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", b, mid.x, mid.y,
-                        mid.z, p.E, p.Gf, p.e_p, p.e_r);
-    if (rows.size() > (1u << 20)) {
-      fields.write(rows);
-      rows.clear();
-    }
-  }
-  fields.write(rows);
-  fields.commit();
-}
-
 // run_loop, and in a distributed run an error on one process (an output that cannot be
 // written, say) ends all of them: the others would wait for it at the next exchange.
 int guarded_loop(const std::function<int()>& loop) {
@@ -963,7 +895,8 @@ std::unique_ptr<RunBody> make_body(BuiltCase& c, ProcessGrid asked) {
         const ProcessGrid grid =
             resolve_grid(c.lattice->ny(), c.lattice->nz(), process_count(), asked);
         body = std::make_unique<RunBody>(c, grid, process_rank());
-      }))
+      }) ||
+      !agreed([&] { body->agree_on_body(); }))
     return nullptr;
   return body;
 }
@@ -980,7 +913,7 @@ int run_command(const std::string& path, const RunOptions& o) {
   // The first process builds the whole body (its time step, the outputs' copy) and prepares
   // the folder; the others only what their subdomains need.
   if (!agreed([&] {
-        c = build_case(path, o.adjust, writes);
+        c = build_case(path, o.adjust, process_count() == 1);
         if (process_count() > 1) // a body too thin to split is refused before any output
           try {
             grid = resolve_grid(c.lattice->ny(), c.lattice->nz(), process_count(),
@@ -988,12 +921,15 @@ int run_command(const std::string& path, const RunOptions& o) {
           } catch (const InputError& e) {
             throw InputError(fmt::format("{}: {}", path, e.what()));
           }
-        if (writes)
-          prepare_output(o.out_dir, o.force);
+        if (writes) // (made once the body is built: a bad case leaves no folder behind)
+          prepare_output(o.out_dir, o.force, false);
       }))
     return 2;
   const std::unique_ptr<RunBody> body = make_body(c, grid);
-  if (!body)
+  if (!body || !agreed([&] {
+        if (writes)
+          prepare_output(o.out_dir, o.force);
+      }))
     return 2;
   const std::string dir = o.out_dir + "/";
   RunState st;
@@ -1006,15 +942,15 @@ int run_command(const std::string& path, const RunOptions& o) {
       if (e.path().extension() == ".vtu" && e.path().filename().string().rfind("lattice_", 0) == 0)
         fs::remove(e.path());
     fs::remove_all(o.out_dir + "/checkpoint", ec);
-    write_file(dir + "case.resolved.toml", resolved_case_toml(c));
-    if (c.sim->table().per_bar())
-      write_fields(*c.sim, dir);
+    write_file(dir + "case.resolved.toml", resolved_case_toml(c, body->numbers()));
     const std::string text = read_all(path);
-    st.case_hash = fnv1a(text.data(), text.size());
+    st.case_hash = checkpoint::fnv1a(text.data(), text.size());
     if (process_count() > 1)
       fmt::print(stderr, "ldem: {}\n", describe_decomposition(*c.lattice, grid));
   }
   return guarded_loop([&] {
+    if (body->numbers().per_bar)
+      body->write_fields(dir + "fields.csv");
     return run_loop(c, *body, o.out_dir, st, true, o.plots,
                     o.checkpoint_every >= 0 ? static_cast<std::uint64_t>(o.checkpoint_every)
                                             : c.spec.output.checkpoint_every,
@@ -1028,16 +964,16 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
   if (threads > 0)
     omp_set_num_threads(threads);
   const bool writes = process_rank() == 0;
-  std::string payload;
-  std::size_t pos = 0;
+  const std::string path = out_dir + "/checkpoint/state.ckpt";
   RunState st;
   BuiltCase c;
-  // The first process reads the checkpoint (written by any number of processes: it holds the
-  // whole body) and loads it into the whole body; the subdomains then take their part of it.
+  // The first process reads the run's state from the checkpoint (written by any number of
+  // processes) and checks its case file; every process builds the case (a distributed run its
+  // subdomain) and loads its part of the body's state from the file.
   if (!agreed([&] {
         if (!writes)
           return;
-        st = read_checkpoint(out_dir + "/checkpoint/state.ckpt", payload, pos);
+        st = parse_run_state(checkpoint::read_header(path).meta);
         std::string text;
         try {
           text = read_all(st.case_path);
@@ -1046,25 +982,21 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
                                        "it unchanged",
                                        st.case_path));
         }
-        if (fnv1a(text.data(), text.size()) != st.case_hash)
+        if (checkpoint::fnv1a(text.data(), text.size()) != st.case_hash)
           throw InputError(fmt::format("{}: the case file changed since the checkpoint in {}; "
                                        "a resume needs it unchanged (start a new run instead)",
                                        st.case_path, out_dir));
-        c = build_case(st.case_path);
-        c.sim->load_state(payload, pos);
       }))
     return 2;
   std::string case_path = st.case_path;
   broadcast_from_first(case_path);
-  if (!agreed([&] {
-        if (!writes)
-          c = build_case(case_path, nullptr, false);
-      }))
+  if (!agreed([&] { c = build_case(case_path, nullptr, process_count() == 1); }))
     return 2;
   const std::unique_ptr<RunBody> body = make_body(c, {grid_y, grid_z});
   if (!body)
     return 2;
-  body->spread_whole_state();
+  if (!agreed([&] { body->read_checkpoint(path); }))
+    return 2;
   st.next = body->step_count(); // the checkpoint's next step, on every process
   if (writes)
     fmt::print(stderr, "ldem: resuming {} at step {} (t = {:.4g} s)\n", st.case_path, st.next,

@@ -15,6 +15,7 @@ namespace ldem {
 
 // A case turned into a ready Simulation, with what the outputs need to know about it.
 struct BuiltCase {
+  std::string path; // the case file
   CaseSpec spec;
   std::unique_ptr<Simulation> sim;
   std::vector<NodeSet> sets;
@@ -29,6 +30,9 @@ struct BuiltCase {
   Conditions conditions;
   SolverOptions options;
 };
+
+// Throws InputError unless the case's time.end holds at least one step of dt.
+void check_end_time(const BuiltCase& c, double dt);
 
 // Builds everything a run needs; bad input throws InputError naming the case file. `adjust`,
 // if given, changes the case after it is read (ensemble perturbations). Without
@@ -61,7 +65,20 @@ int plot_command(const std::string& dir);
 // with the time step and any periodic load frequency compared to the lowest. No files.
 int modes_command(const std::string& path, int count, int threads);
 
+// The numbers of a built body that the resolved case reports.
+struct BodyNumbers {
+  MaterialRanges ranges{};
+  DuctilitySummary ductility{};
+  StableStep stable{};
+  double dt = 0.0;
+  // The simulation's memory per module (distributed: the busiest process's per module it
+  // owns), for summary.json.
+  double bytes_per_module = 0.0;
+  bool per_bar = false; // some material property varies from bar to bar
+};
+BodyNumbers body_numbers(const Simulation& sim);
+
 // The resolved case (every default and derived value), as TOML.
-std::string resolved_case_toml(const BuiltCase& c);
+std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& n);
 
 } // namespace ldem

@@ -1,11 +1,15 @@
 #include "app/run_body.hpp"
 
+#include "io/checkpoint.hpp"
 #include "material/field.hpp"
 #include "parallel/comm.hpp"
 #include "util/error.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <fmt/format.h>
+#include <fstream>
+#include <numeric>
 
 namespace ldem {
 
@@ -75,7 +79,27 @@ RunBody::RunBody(BuiltCase& c, ProcessGrid grid, int rank)
           modules.push_back(i + whole.nx() * (j + whole.ny() * k));
     fields.rho = evaluate_field_modules(*given.rho, whole, modules);
   }
-  BarTable table(local, c.spec.material, fields);
+  // The window's table names the body's bars and sums up the bars this process owns; the
+  // processes' summaries combine into the body's below.
+  BodyWindow window;
+  window.body = &whole;
+  window.body_bar = [&](index_t b) { return global_bar(sub, local, whole, b); };
+  window.counted = [&](index_t b) {
+    const BarAddress a = local.bar_address(b);
+    return sub.owns(a.j + sub.y.w0, a.k + sub.z.w0, true);
+  };
+  std::optional<BarTable> table_built;
+  try {
+    table_built.emplace(local, c.spec.material, fields, &window);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", c.path, e.what()));
+  }
+  BarTable& table = *table_built;
+  numbers_.ranges = table.ranges();
+  numbers_.ductility = table.ductility_summary();
+  numbers_.per_bar = table.per_bar();
+  if (rank == 0)
+    c.warnings = table.warnings(); // those of the case's values (the same on every process)
   Conditions conditions = subdomain_conditions(sub, whole, local, c.conditions);
   std::vector<index_t> precracked;
   for (index_t b : c.precracked) {
@@ -89,18 +113,115 @@ RunBody::RunBody(BuiltCase& c, ProcessGrid grid, int rank)
   options.defer_time_step = true; // the body's step, below
   run_ = std::make_unique<SubdomainRun>(sub, std::move(local), std::move(table),
                                         std::move(conditions), options, std::move(precracked));
-  // The body's stable step and dt, as one process finds them: the stiffest material of all
-  // windows for the paper's rule.
-  stable_ = distributed_stable_step(*run_, whole);
-  const double E_max = ldem::max_over_processes(run_->sim().table().ranges().E[1]);
-  dt_ =
-      time_step_by_rule(c.options.step, stable_, E_max, run_->sim().table().spec().rho, whole.L());
+}
+
+void RunBody::agree_on_body() {
+  if (!run_)
+    return;
+  const Lattice& whole = lattice();
+  const BuiltCase& c = c_;
+  const Subdomain& sub = run_->subdomain();
+  // The body's material summary, stable step and dt, as one process finds them.
+  try {
+    combine_numbers(whole);
+    stable_ = distributed_stable_step(*run_, whole);
+    dt_ = time_step_by_rule(c.options.step, stable_, numbers_.ranges.E[1],
+                            run_->sim().table().spec().rho, whole.L());
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", c.path, e.what()));
+  }
   run_->sim().set_time_step(stable_, dt_);
+  check_end_time(c, dt_);
+  numbers_.stable = stable_;
+  numbers_.dt = dt_;
+  // The memory of the busiest process per module it owns.
+  numbers_.bytes_per_module = ldem::max_over_processes(
+      run_->sim().bytes_per_module() * static_cast<double>(run_->sim().lattice().num_modules()) /
+      (static_cast<double>(sub.y.m1 - sub.y.m0) * static_cast<double>(sub.z.m1 - sub.z.m0) *
+       static_cast<double>(whole.nx())));
   // The place of every process's energy rows in the body's order, found once: the rows of a
   // report come in rank order, each process's in its own order.
   EnergyRows rows;
   run_->append_owned_row_keys(rows);
   bar_order_ = key_order(gather_on_first(rows.bar_keys));
+}
+
+void RunBody::combine_numbers(const Lattice& whole) {
+  // The body's ranges and ductility from every process's owned bars: smallest of the
+  // smallest, largest of the largest, counts added; the worst bar the body's first with the
+  // smallest K_r.
+  MaterialRanges& r = numbers_.ranges;
+  for (double* range : {r.E, r.Gf, r.e_p, r.e_r_normal}) {
+    range[0] = min_over_processes(range[0]);
+    range[1] = ldem::max_over_processes(range[1]);
+  }
+  DuctilitySummary& d = numbers_.ductility;
+  for (double* lo : {&d.kr_min_normal, &d.kr_min_diag, &d.L_cr_min})
+    *lo = min_over_processes(*lo);
+  for (double* hi : {&d.kr_max_normal, &d.kr_max_diag})
+    *hi = ldem::max_over_processes(*hi);
+  d.bars_below_one =
+      static_cast<std::uint64_t>(sum_over_processes(static_cast<double>(d.bars_below_one)));
+  const double worst = min_over_processes(d.worst_kr);
+  d.worst_bar = static_cast<index_t>(
+      min_over_processes(d.worst_kr == worst ? static_cast<double>(d.worst_bar) : INFINITY));
+  d.worst_kr = worst;
+  // K_r < 1: refused, or allowed with a warning, as one process judges the body.
+  if (auto warning = check_ductility(d, c_.spec.material, whole.num_bars(),
+                                     whole.bar_centre(d.worst_bar), whole.L()))
+    if (writes())
+      c_.warnings.push_back(*warning);
+}
+
+BodyNumbers RunBody::numbers() const {
+  return run_ ? numbers_ : body_numbers(*c_.sim);
+}
+
+void RunBody::write_fields(const std::string& path) {
+  // Every bar up to 2 million, else every stride-th: each with its centre and material as a
+  // user reads them (BarTable::properties).
+  const Lattice& whole = lattice();
+  const index_t stride = std::max<index_t>(1, whole.num_bars() / 2000000 + 1);
+  std::vector<double> rows; // (bar, E, Gf, e_p, e_r) of the sampled bars this process owns
+  if (!run_) {
+    for (index_t b = 0; b < whole.num_bars(); b += stride) {
+      const BarTable::Properties p = c_.sim->table().properties(whole, b);
+      rows.insert(rows.end(), {static_cast<double>(b), p.E, p.Gf, p.e_p, p.e_r});
+    }
+  } else {
+    const Lattice& local = run_->sim().lattice();
+    for (index_t b = 0; b < local.num_bars(); ++b) {
+      const index_t g = global_bar(run_->subdomain(), local, whole, b);
+      if (g % stride != 0 || !run_->owns_bar(b))
+        continue;
+      const BarTable::Properties p = run_->sim().table().properties(local, b);
+      rows.insert(rows.end(), {static_cast<double>(g), p.E, p.Gf, p.e_p, p.e_r});
+    }
+    rows = gather_on_first(rows);
+  }
+  if (!writes())
+    return;
+  // In the body's order (the processes' rows come in rank order).
+  std::vector<std::size_t> order(rows.size() / 5);
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return rows[5 * a] < rows[5 * b]; });
+  OutputFile file(path);
+  file.write("bar,x,y,z,E,Gf,e_p,e_r\n");
+  std::string text;
+  for (std::size_t q : order) {
+    const double* row = rows.data() + 5 * q;
+    const auto b = static_cast<index_t>(row[0]);
+    const Vec3 mid = whole.bar_centre(b);
+    text += fmt::format("{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", b, mid.x, mid.y,
+                        mid.z, row[1], row[2], row[3], row[4]);
+    if (text.size() > (1u << 20)) {
+      file.write(text);
+      text.clear();
+    }
+  }
+  file.write(text);
+  file.commit();
 }
 
 std::uint64_t RunBody::step_count() const {
@@ -295,13 +416,13 @@ void RunBody::read_report(bool report) {
 }
 
 std::vector<Event> RunBody::take_events() {
-  if (!run_)
-    return c_.sim->take_events();
-  if (!writes())
-    return {};
-  std::vector<Event> events = c_.sim->take_events(); // any left from a checkpoint
-  events.insert(events.end(), events_.begin(), events_.end());
+  // Those left from a checkpoint (or kept by one), then the newer ones.
+  std::vector<Event> events = std::move(events_);
   events_.clear();
+  if (!run_) {
+    const std::vector<Event> more = c_.sim->take_events();
+    events.insert(events.end(), more.begin(), more.end());
+  }
   std::sort(events.begin(), events.end(), event_before);
   return events;
 }
@@ -325,57 +446,6 @@ int RunBody::max_over_processes(int value) const {
   return static_cast<int>(ldem::max_over_processes(static_cast<double>(value)));
 }
 
-Simulation* RunBody::whole(bool full) {
-  if (!run_)
-    return c_.sim.get();
-  const Simulation& sim = run_->sim();
-  const Lattice& body = lattice();
-  std::vector<double>& mine = send_;
-  mine.clear();
-  for (bool previous : {false, true}) // u_{n-1} too: snapshots show velocities
-    for (const Span& s : subdomain_node_spans(run_->subdomain(), body, true))
-      sim.append_displacements(s.local_first, s.count, mine, previous);
-  for (const Span& s : subdomain_bar_spans(run_->subdomain(), body, true))
-    sim.append_histories(s.local_first, s.count, mine);
-  mine.resize(mine.size() + Ledger::State::kDoubles);
-  sim.ledger_state().write(mine.data() + mine.size() - Ledger::State::kDoubles);
-  if (full)
-    append_events(mine); // those since the last report
-  gather_on_first(mine, received_);
-  if (!writes())
-    return nullptr;
-  Simulation& w = *c_.sim;
-  const double* in = received_.data();
-  Ledger::State ledger; // the processes' accumulators, added exactly
-  for (int r = 0; r < ranks_; ++r) {
-    const Subdomain sub = make_subdomain(body.ny(), body.nz(), run_->subdomain().grid, r);
-    for (bool previous : {false, true})
-      for (const Span& s : subdomain_node_spans(sub, body, true)) {
-        w.assign_displacements(s.global_first, s.count, in, previous);
-        in += 3 * std::size_t{s.count};
-      }
-    for (const Span& s : subdomain_bar_spans(sub, body, true)) {
-      w.assign_histories(s.global_first, s.count, in);
-      in += s.count;
-    }
-    Ledger::State part;
-    part.read(in);
-    ledger.add(part);
-    in += Ledger::State::kDoubles;
-    if (full) {
-      const auto ne = static_cast<std::size_t>(in[0]);
-      for (std::size_t q = 1; q + 2 <= ne; q += 3)
-        events_.push_back({static_cast<index_t>(in[q]), static_cast<BarState>(in[q + 1]),
-                           static_cast<std::uint64_t>(in[q + 2])});
-      in += 1 + ne;
-    }
-  }
-  std::vector<Event> pending = take_events(); // a checkpoint keeps those not yet written
-  ledger.initial = initial_;
-  w.restore_progress(step_count(), full ? ledger : w.ledger_state(), report_, std::move(pending));
-  return &w;
-}
-
 void RunBody::prepare_snapshots() {
   if (run_)
     subdomain_vtu_ = std::make_unique<SubdomainVtuWriter>(*run_, lattice());
@@ -392,48 +462,224 @@ void RunBody::write_snapshot(const std::string& path) {
     vtu_->write(*c_.sim, path);
 }
 
-void RunBody::spread_whole_state() {
-  if (!run_)
-    return;
+Simulation& RunBody::sim() {
+  return run_ ? run_->sim() : *c_.sim;
+}
+
+std::vector<Span> RunBody::node_spans(bool owned) const {
+  if (run_)
+    return subdomain_node_spans(run_->subdomain(), lattice(), owned);
+  return {{0, 0, lattice().num_nodes()}};
+}
+
+std::vector<Span> RunBody::bar_spans(bool owned) const {
+  if (run_)
+    return subdomain_bar_spans(run_->subdomain(), lattice(), owned);
+  return {{0, 0, lattice().num_bars()}};
+}
+
+void RunBody::write_checkpoint(const std::string& path, const std::string& meta) {
+  namespace ck = checkpoint;
+  // The body's ledger (every process's exact sums added) and every event not yet written, on
+  // the first process.
+  Ledger::State ledger = sim().ledger_state();
+  if (run_) {
+    std::vector<double>& mine = send_;
+    mine.assign(Ledger::State::kDoubles, 0.0);
+    ledger.write(mine.data());
+    append_events(mine); // those since the last report
+    gather_on_first(mine, received_);
+    if (writes()) {
+      ledger = Ledger::State{{}, {}, initial_};
+      const double* in = received_.data();
+      for (int r = 0; r < ranks_; ++r) {
+        Ledger::State part;
+        part.read(in);
+        ledger.add(part);
+        in += Ledger::State::kDoubles;
+        const auto ne = static_cast<std::size_t>(in[0]);
+        for (std::size_t q = 1; q + 2 <= ne; q += 3)
+          events_.push_back({static_cast<index_t>(in[q]), static_cast<BarState>(in[q + 1]),
+                             static_cast<std::uint64_t>(in[q + 2])});
+        in += 1 + ne;
+      }
+    }
+  } else {
+    const std::vector<Event> more = c_.sim->take_events();
+    events_.insert(events_.end(), more.begin(), more.end());
+  }
+  std::sort(events_.begin(), events_.end(), event_before); // (kept: written at the next report)
   const Lattice& body = lattice();
-  std::vector<std::vector<double>> parts;
-  double progress[1 + Ledger::State::kDoubles] = {}; // the step, the body's ledger
+  const std::uint64_t nodes = body.num_nodes(), bars = body.num_bars();
+  std::string progress;
+  std::uint64_t sum = 0;
   if (writes()) {
-    const Simulation& w = *c_.sim;
-    for (int r = 0; r < ranks_; ++r) {
-      const Subdomain sub = make_subdomain(body.ny(), body.nz(), run_->subdomain().grid, r);
-      std::vector<double> part;
-      for (bool previous : {false, true})
-        for (const Span& s : subdomain_node_spans(sub, body, false))
-          w.append_displacements(s.global_first, s.count, part, previous);
-      for (const Span& s : subdomain_bar_spans(sub, body, false))
-        w.append_histories(s.global_first, s.count, part);
-      parts.push_back(std::move(part));
+    ck::put(progress, step_count());
+    ck::put(progress, dt_);
+    double state[Ledger::State::kDoubles];
+    ledger.write(state);
+    ck::put(progress, state);
+    ck::put(progress, report_);
+    ck::put(progress, nodes);
+    ck::put(progress, bars);
+    ck::put(progress, static_cast<std::uint64_t>(events_.size()));
+    for (const Event& e : events_) {
+      ck::put(progress, e.bar);
+      ck::put(progress, e.state);
+      ck::put(progress, e.step);
     }
-    progress[0] = static_cast<double>(w.step_count());
-    w.ledger_state().write(progress + 1);
-    report_ = w.last_report();
+    sum = ck::fnv1a(meta.data(), meta.size()) + ck::fnv1a(progress.data(), progress.size());
   }
-  const std::vector<double> part = scatter_from_first(parts);
-  broadcast_from_first(progress, 1 + Ledger::State::kDoubles);
-  Simulation& sim = run_->sim();
-  const double* in = part.data();
+  double sizes[2] = {static_cast<double>(meta.size()), static_cast<double>(progress.size())};
+  broadcast_from_first(sizes, 2);
+  const std::uint64_t at = ck::Header::arrays_offset(static_cast<std::uint64_t>(sizes[0]),
+                                                     static_cast<std::uint64_t>(sizes[1]));
+  SharedFile file(path);
+  // The owned nodes' u_n and u_{n-1} (x, y, z: arrays 0 to 5) and the owned bars' histories
+  // (after the six node arrays), each value at its place in the body's order.
+  std::vector<double>& buf = send_;
+  auto write_piece = [&](std::uint64_t place, const double* v, index_t count) {
+    for (index_t i = 0; i < count; ++i)
+      sum += ck::word_hash(place + i, v[i]);
+    file.write_at(at + 8 * place, v, 8 * std::size_t{count});
+  };
   for (bool previous : {false, true})
-    for (const Span& s : subdomain_node_spans(run_->subdomain(), body, false)) {
-      sim.assign_displacements(s.local_first, s.count, in, previous);
-      in += 3 * std::size_t{s.count};
+    for (const Span& s : node_spans(true)) {
+      buf.clear();
+      sim().append_displacements(s.local_first, s.count, buf, previous);
+      for (std::uint64_t d = 0; d < 3; ++d)
+        write_piece(((previous ? 3 : 0) + d) * nodes + s.global_first, buf.data() + d * s.count,
+                    s.count);
     }
-  for (const Span& s : subdomain_bar_spans(run_->subdomain(), body, false)) {
-    sim.assign_histories(s.local_first, s.count, in);
-    in += s.count;
+  for (const Span& s : bar_spans(true)) {
+    buf.clear();
+    sim().append_histories(s.local_first, s.count, buf);
+    write_piece(6 * nodes + s.global_first, buf.data(), s.count);
   }
+  sum = wrapping_sum_over_processes(sum);
+  if (writes()) {
+    const std::string head = ck::header_bytes(meta, progress, sum) + meta + progress;
+    file.write_at(0, head.data(), head.size());
+    const std::string pad(at - head.size(), '\0');
+    file.write_at(head.size(), pad.data(), pad.size());
+  }
+  file.commit();
+}
+
+std::string RunBody::read_checkpoint(const std::string& path) {
+  namespace ck = checkpoint;
+  const ck::Header h = ck::read_header(path);
+  const Lattice& body = lattice();
+  const std::uint64_t nodes = body.num_nodes(), bars = body.num_bars();
+  std::size_t pos = 0;
+  std::uint64_t step = 0, file_nodes = 0, file_bars = 0, pending = 0;
+  double dt = 0.0, state[Ledger::State::kDoubles];
+  EnergyReport report{};
+  ck::get(h.progress, pos, step);
+  ck::get(h.progress, pos, dt);
+  ck::get(h.progress, pos, state);
+  ck::get(h.progress, pos, report);
+  ck::get(h.progress, pos, file_nodes);
+  ck::get(h.progress, pos, file_bars);
+  if (file_nodes != nodes || file_bars != bars)
+    throw InputError(fmt::format("{}: a checkpoint of a body of {} nodes and {} bars; this case "
+                                 "has {} and {}",
+                                 path, file_nodes, file_bars, nodes, bars));
+  if (dt != dt_)
+    throw InputError(fmt::format("{}: its time step {:.17g} s differs from this case's {:.17g} s",
+                                 path, dt, dt_));
+  const std::uint64_t at = h.arrays_at(), expected = at + 8 * (6 * nodes + bars);
+  if (h.file_bytes != expected)
+    throw InputError(fmt::format("{}: truncated checkpoint ({} bytes, {} expected)", path,
+                                 h.file_bytes, expected));
+  std::vector<Event> events;
+  ck::get(h.progress, pos, pending);
+  for (std::uint64_t i = 0; i < pending; ++i) {
+    Event e{};
+    ck::get(h.progress, pos, e.bar);
+    ck::get(h.progress, pos, e.state);
+    ck::get(h.progress, pos, e.step);
+    events.push_back(e);
+  }
+  // The window's nodes and bars (owned and ghosts), each value from its place.
+  std::ifstream in(path, std::ios::binary);
+  std::vector<double>& buf = send_;
+  auto read_piece = [&](std::uint64_t place, double* v, index_t count) {
+    in.seekg(static_cast<std::streamoff>(at + 8 * place));
+    if (!in.read(reinterpret_cast<char*>(v), static_cast<std::streamsize>(8 * std::size_t{count})))
+      throw InputError(fmt::format("{}: cannot read the checkpoint", path));
+  };
+  Simulation& s = sim();
+  for (bool previous : {false, true})
+    for (const Span& sp : node_spans(false)) {
+      buf.resize(3 * std::size_t{sp.count});
+      for (std::uint64_t d = 0; d < 3; ++d)
+        read_piece(((previous ? 3 : 0) + d) * nodes + sp.global_first, buf.data() + d * sp.count,
+                   sp.count);
+      s.assign_displacements(sp.local_first, sp.count, buf.data(), previous);
+    }
+  for (const Span& sp : bar_spans(false)) {
+    buf.resize(sp.count);
+    read_piece(6 * nodes + sp.global_first, buf.data(), sp.count);
+    s.assign_histories(sp.local_first, sp.count, buf.data());
+  }
+  // The checksum: every process adds the terms of what it owns.
+  std::uint64_t sum = writes() ? ck::fnv1a(h.meta.data(), h.meta.size()) +
+                                     ck::fnv1a(h.progress.data(), h.progress.size())
+                               : 0;
+  for (bool previous : {false, true})
+    for (const Span& sp : node_spans(true)) {
+      buf.clear();
+      s.append_displacements(sp.local_first, sp.count, buf, previous);
+      for (std::uint64_t d = 0; d < 3; ++d)
+        for (index_t i = 0; i < sp.count; ++i)
+          sum += ck::word_hash(((previous ? 3 : 0) + d) * nodes + sp.global_first + i,
+                               buf[d * sp.count + i]);
+    }
+  for (const Span& sp : bar_spans(true)) {
+    buf.clear();
+    s.append_histories(sp.local_first, sp.count, buf);
+    for (index_t i = 0; i < sp.count; ++i)
+      sum += ck::word_hash(6 * nodes + sp.global_first + i, buf[i]);
+  }
+  if (wrapping_sum_over_processes(sum) != h.checksum)
+    throw InputError(fmt::format("{}: checkpoint checksum mismatch: the file is corrupt", path));
   Ledger::State ledger;
-  ledger.read(progress + 1);
+  ledger.read(state);
   initial_ = ledger.initial;
   // The body's accumulated work and damping go to the first process; the others add from zero.
   if (!writes())
     ledger = Ledger::State{{}, {}, initial_};
-  sim.restore_progress(static_cast<std::uint64_t>(progress[0]), ledger, {}, {});
+  s.restore_progress(step, ledger, report, {});
+  report_ = report;
+  events_ = writes() ? std::move(events) : std::vector<Event>{};
+  return h.meta;
+}
+
+std::array<std::uint64_t, 2> RunBody::softening_and_broken() {
+  double counts[2] = {0, 0};
+  const Simulation& s = sim();
+  for (const Span& sp : bar_spans(true))
+    for (index_t b = sp.local_first; b < sp.local_first + sp.count; ++b) {
+      const BarState state = s.bar_state(b);
+      counts[0] += state == BarState::Softening;
+      counts[1] += state == BarState::Broken;
+    }
+  return {static_cast<std::uint64_t>(sum_over_processes(counts[0])),
+          static_cast<std::uint64_t>(sum_over_processes(counts[1]))};
+}
+
+Vec3 RunBody::displacement(index_t node) {
+  if (!run_)
+    return c_.sim->displacement(node);
+  std::vector<double> mine;
+  const NodeAddress a = lattice().node_address(node);
+  if (owner_rank(run_->subdomain(), a.j, a.k) == rank_) {
+    const Vec3 u = run_->sim().displacement(run_->local_node(a));
+    mine = {u.x, u.y, u.z};
+  }
+  const std::vector<double> all = gather_on_first(mine);
+  return all.size() == 3 ? Vec3{all[0], all[1], all[2]} : Vec3{0, 0, 0};
 }
 
 } // namespace ldem

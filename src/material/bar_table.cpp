@@ -26,8 +26,12 @@ double BarTable::area_ratio(BarKind kind) const {
                                  : kFractureAreaDiag / eq.area_diag;
 }
 
-BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields& fields)
+BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields& fields,
+                   const BodyWindow* window)
     : spec_(spec) {
+  // The body's number of a bar (messages) and whether the summary counts it.
+  auto body_bar = [&](index_t b) { return window ? window->body_bar(b) : b; };
+  auto counted = [&](index_t b) { return !window || window->counted(b); };
   require(spec.E > 0 && std::isfinite(spec.E), "E", "a positive modulus in Pa", spec.E);
   require(spec.rho > 0 && std::isfinite(spec.rho), "rho", "a positive density in kg/m^3", spec.rho);
   require(spec.Gf > 0 && std::isfinite(spec.Gf), "Gf", "a positive fracture energy in N/m",
@@ -101,6 +105,7 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
     r[1] = -INFINITY;
   }
   DuctilitySummary& s = summary_;
+  bool any_below = false; // some bar of the table has K_r < 1, counted or not
   s.kr_min_normal = s.kr_min_diag = s.worst_kr = s.L_cr_min = INFINITY;
   s.kr_max_normal = s.kr_max_diag = 0.0;
   auto account = [&](index_t bar, BarKind kind, double kr, double L_cr) {
@@ -125,9 +130,12 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
         continue;
       const FamilyMaterial& m = families_[f];
       const double kr = m.e_r / m.e_p;
-      account(fi.offset, fi.kind, kr, critical_length(Gf_eff, spec.E, e_p, ratio_n));
+      any_below |= kr < 1.0;
+      // (The first bar of the family: in a window, the first process's is the body's.)
+      account(body_bar(fi.offset), fi.kind, kr, critical_length(Gf_eff, spec.E, e_p, ratio_n));
       if (kr < 1.0)
-        s.bars_below_one += fi.count();
+        for (index_t b = fi.offset; b < fi.offset + fi.count(); ++b)
+          s.bars_below_one += counted(b);
     }
   } else {
     k_.resize(nb);
@@ -149,7 +157,7 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
       if (!(E > 0 && Gf_in > 0 && ep > 0))
         throw InputError(fmt::format("material fields: bar {} has E = {:g}, Gf = {:g}, e_p = {:g}; "
                                      "expected all positive",
-                                     b, E, Gf_in, ep));
+                                     body_bar(b), E, Gf_in, ep));
       const double ratio = kind == BarKind::Normal ? ratio_n : ratio_d;
       k_[b] = E * m.area / m.l0 * lat.area_factor(a.family, a.i, a.j, a.k);
       e_p_[b] = ep;
@@ -159,49 +167,56 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
         if (!(er_n > ep))
           throw InputError(fmt::format("material: bar {} has e_r = {:g} <= e_p = {:g}; expected "
                                        "e_r > e_p",
-                                       b, er_n, ep));
+                                       body_bar(b), er_n, ep));
         e_r_[b] = er_n * (kind == BarKind::Normal ? 1.0 : er_scale_d);
         Gf = (er_n / ep) * E * ep * ep * l_n / (2.0 * ratio_n); // eq. 11 for a normal bar
-        if (kind == BarKind::Normal)
-          widen(ranges_.e_r_normal, er_n);
       } else {
         e_r_[b] = ductility(Gf, E, ep, ratio, m.l0) * ep;
-        if (kind == BarKind::Normal)
-          widen(ranges_.e_r_normal, e_r_[b]);
       }
+      any_below |= e_r_[b] / ep < 1.0;
+      if (!counted(b))
+        continue;
+      if (kind == BarKind::Normal)
+        widen(ranges_.e_r_normal, e_r_[b]);
       widen(ranges_.E, E);
       widen(ranges_.Gf, Gf);
       widen(ranges_.e_p, ep);
       const double kr = e_r_[b] / ep;
-      account(b, kind, kr, critical_length(Gf, E, ep, ratio_n));
+      account(body_bar(b), kind, kr, critical_length(Gf, E, ep, ratio_n));
       if (kr < 1.0)
         ++s.bars_below_one;
     }
   }
-  if (s.bars_below_one > 0 && spec.allow_low_kr) {
+  if (any_below && spec.allow_low_kr) {
     // A brittle bar: e_r just above e_p (the law needs e_r > e_p), force to zero at the peak.
     auto brittle = [&](double& er, double ep) { er = std::max(er, ep * (1.0 + 1e-9)); };
     for (int f = 0; f < kFamilies; ++f)
       brittle(families_[f].e_r, families_[f].e_p);
     for (std::size_t b = 0; b < e_r_.size(); ++b)
       brittle(e_r_[b], e_p_[b]);
-    warnings_.push_back(fmt::format(
+  }
+  if (!window)
+    if (auto warning = check_ductility(s, spec, nb, lat.bar_centre(s.worst_bar), L))
+      warnings_.push_back(*warning);
+}
+
+std::optional<std::string> check_ductility(const DuctilitySummary& s, const MaterialSpec& spec,
+                                           std::uint64_t bars, Vec3 c, double L) {
+  if (s.bars_below_one == 0)
+    return std::nullopt;
+  if (spec.allow_low_kr)
+    return fmt::format(
         "material: K_r < 1 in {} bars (smallest {:.4g}), allowed by allow_low_kr: these bars break "
         "at e_p without softening and dissipate EA e_p^2 l0 / 2, more than Gf A^f (L_cr = {:.4g} "
-        "m, "
-        "L = {:.4g} m)",
-        s.bars_below_one, s.worst_kr, s.L_cr_min, L));
-  }
-  if (s.bars_below_one > 0 && !spec.allow_low_kr) {
-    const Vec3 c = lat.bar_centre(s.worst_bar);
-    throw InputError(fmt::format(
-        "material: K_r = e_r / e_p < 1 in {} of {} bars (smallest K_r = {:.4g}, bar {} centred at "
-        "({:g}, {:g}, {:g}) m): their softening branch is steeper than the elastic one and the "
-        "explicit solution is unstable. The critical length (eq. 13) is L_cr = {:.4g} m against "
-        "L = {:.4g} m: use modules with L <= L_cr, a larger Gf or a smaller e_p, or set "
-        "allow_low_kr = true to run anyway",
-        s.bars_below_one, nb, s.worst_kr, s.worst_bar, c.x, c.y, c.z, s.L_cr_min, L));
-  }
+        "m, L = {:.4g} m)",
+        s.bars_below_one, s.worst_kr, s.L_cr_min, L);
+  throw InputError(fmt::format(
+      "material: K_r = e_r / e_p < 1 in {} of {} bars (smallest K_r = {:.4g}, bar {} centred at "
+      "({:g}, {:g}, {:g}) m): their softening branch is steeper than the elastic one and the "
+      "explicit solution is unstable. The critical length (eq. 13) is L_cr = {:.4g} m against "
+      "L = {:.4g} m: use modules with L <= L_cr, a larger Gf or a smaller e_p, or set "
+      "allow_low_kr = true to run anyway",
+      s.bars_below_one, bars, s.worst_kr, s.worst_bar, c.x, c.y, c.z, s.L_cr_min, L));
 }
 
 BarTable::Properties BarTable::properties(const Lattice& lat, index_t bar) const {

@@ -8,6 +8,7 @@
 #include "material/bar_law_bilinear.hpp"
 
 #include <array>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -68,11 +69,28 @@ struct DuctilitySummary {
   double worst_kr = 0;
 };
 
+// The verdict on bars with K_r < 1 in a body of `bars` bars whose summary is `s` (worst bar
+// centred at `worst_centre`, modules of size L): throws InputError unless spec.allow_low_kr;
+// allowed, the warning the user should read (none when every K_r >= 1).
+std::optional<std::string> check_ductility(const DuctilitySummary& s, const MaterialSpec& spec,
+                                           std::uint64_t bars, Vec3 worst_centre, double L);
+
+// A table built for a window of a larger body (a distributed run's subdomain): its messages
+// name the body's bars, its ranges and ductility summary cover only the bars the window counts
+// (those its process owns, so that the processes' summaries combine into the body's), and
+// K_r < 1 is left to the caller, who judges the combined summary with check_ductility.
+struct BodyWindow {
+  const Lattice* body = nullptr;
+  std::function<index_t(index_t)> body_bar; // the body's number of a window bar
+  std::function<bool(index_t)> counted;     // window bar -> counted in the summary
+};
+
 class BarTable {
 public:
   // Throws InputError for inconsistent or out-of-range values and, unless
-  // spec.allow_low_kr, for any bar with K_r < 1.
-  BarTable(const Lattice& lattice, const MaterialSpec& spec, const BarFields& fields = {});
+  // spec.allow_low_kr or built for a window, for any bar with K_r < 1.
+  BarTable(const Lattice& lattice, const MaterialSpec& spec, const BarFields& fields = {},
+           const BodyWindow* window = nullptr);
 
   const MaterialSpec& spec() const { return spec_; }
   const FamilyMaterial& family(int f) const { return families_[f]; }

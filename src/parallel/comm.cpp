@@ -202,45 +202,6 @@ void abort_processes(int code) {
   }
 }
 
-SharedFile::SharedFile(const std::string& path) : path_(path), part_(path + ".part") {
-  MPI_File fh = MPI_FILE_NULL;
-  if (MPI_File_open(MPI_COMM_WORLD, part_.c_str(), MPI_MODE_CREATE | MPI_MODE_WRONLY, MPI_INFO_NULL,
-                    &fh) != MPI_SUCCESS)
-    throw InputError(fmt::format("{}: cannot write", part_));
-  MPI_File_set_size(fh, 0); // a stale part of an earlier run goes
-  handle_ = new MPI_File(fh);
-}
-
-SharedFile::~SharedFile() {
-  if (handle_) {
-    MPI_File_close(static_cast<MPI_File*>(handle_));
-    delete static_cast<MPI_File*>(handle_);
-  }
-}
-
-void SharedFile::write_at(std::uint64_t position, const void* data, std::size_t bytes) {
-  const auto* p = static_cast<const char*>(data);
-  while (bytes > 0) { // MPI counts are int
-    const std::size_t n = std::min<std::size_t>(bytes, std::size_t{1} << 30);
-    if (MPI_File_write_at(*static_cast<MPI_File*>(handle_), static_cast<MPI_Offset>(position), p,
-                          static_cast<int>(n), MPI_BYTE, MPI_STATUS_IGNORE) != MPI_SUCCESS)
-      throw InputError(fmt::format("{}: write failed", part_));
-    p += n;
-    position += n;
-    bytes -= n;
-  }
-}
-
-void SharedFile::commit() {
-  if (!handle_)
-    return;
-  MPI_File_close(static_cast<MPI_File*>(handle_));
-  delete static_cast<MPI_File*>(handle_);
-  handle_ = nullptr;
-  if (process_rank() == 0)
-    std::rename(part_.c_str(), path_.c_str());
-}
-
 namespace {
 double reduce(double x, MPI_Op op) {
   double y = x;
@@ -258,36 +219,23 @@ double max_over_processes(double x) {
   return reduce(x, MPI_MAX);
 }
 
+double sum_over_processes(double x) {
+  return reduce(x, MPI_SUM);
+}
+
+std::uint64_t wrapping_sum_over_processes(std::uint64_t x) {
+  std::uint64_t y = x;
+  if (g_active)
+    MPI_Allreduce(&x, &y, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+  return y;
+}
+
 void barrier() {
   if (g_active)
     MPI_Barrier(MPI_COMM_WORLD);
 }
 
 #else
-
-SharedFile::SharedFile(const std::string& path) : path_(path), part_(path + ".part") {
-  std::FILE* f = std::fopen(part_.c_str(), "wb");
-  if (!f)
-    throw InputError(fmt::format("{}: cannot write ({})", part_, std::strerror(errno)));
-  handle_ = f;
-}
-SharedFile::~SharedFile() {
-  if (handle_)
-    std::fclose(static_cast<std::FILE*>(handle_));
-}
-void SharedFile::write_at(std::uint64_t position, const void* data, std::size_t bytes) {
-  auto* f = static_cast<std::FILE*>(handle_);
-  if (std::fseek(f, static_cast<long>(position), SEEK_SET) != 0 ||
-      std::fwrite(data, 1, bytes, f) != bytes)
-    throw InputError(fmt::format("{}: write failed ({})", part_, std::strerror(errno)));
-}
-void SharedFile::commit() {
-  if (!handle_)
-    return;
-  std::fclose(static_cast<std::FILE*>(handle_));
-  handle_ = nullptr;
-  std::rename(part_.c_str(), path_.c_str());
-}
 
 ProcessGroup::ProcessGroup(int&, char**&) {}
 ProcessGroup::~ProcessGroup() = default;
@@ -327,9 +275,86 @@ double min_over_processes(double x) {
 double max_over_processes(double x) {
   return x;
 }
+double sum_over_processes(double x) {
+  return x;
+}
+std::uint64_t wrapping_sum_over_processes(std::uint64_t x) {
+  return x;
+}
 void barrier() {}
 
 #endif
+
+// A SharedFile is written through MPI-IO by a run of several processes, and through stdio by
+// one (also in a build with MPI, started without mpirun).
+SharedFile::SharedFile(const std::string& path) : path_(path), part_(path + ".part") {
+#ifdef LDEM_HAVE_MPI
+  if (g_active) {
+    MPI_File fh = MPI_FILE_NULL;
+    if (MPI_File_open(MPI_COMM_WORLD, part_.c_str(), MPI_MODE_CREATE | MPI_MODE_WRONLY,
+                      MPI_INFO_NULL, &fh) != MPI_SUCCESS)
+      throw InputError(fmt::format("{}: cannot write", part_));
+    MPI_File_set_size(fh, 0); // a stale part of an earlier run goes
+    handle_ = new MPI_File(fh);
+    mpi_ = true;
+    return;
+  }
+#endif
+  std::FILE* f = std::fopen(part_.c_str(), "wb");
+  if (!f)
+    throw InputError(fmt::format("{}: cannot write ({})", part_, std::strerror(errno)));
+  handle_ = f;
+}
+
+SharedFile::~SharedFile() {
+  close();
+}
+
+void SharedFile::close() {
+  if (!handle_)
+    return;
+#ifdef LDEM_HAVE_MPI
+  if (mpi_) {
+    MPI_File_close(static_cast<MPI_File*>(handle_));
+    delete static_cast<MPI_File*>(handle_);
+    handle_ = nullptr;
+    return;
+  }
+#endif
+  std::fclose(static_cast<std::FILE*>(handle_));
+  handle_ = nullptr;
+}
+
+void SharedFile::write_at(std::uint64_t position, const void* data, std::size_t bytes) {
+  const auto* p = static_cast<const char*>(data);
+#ifdef LDEM_HAVE_MPI
+  if (mpi_) {
+    while (bytes > 0) { // MPI counts are ints: pieces of at most 1 GiB
+      const std::size_t n = std::min<std::size_t>(bytes, std::size_t{1} << 30);
+      if (MPI_File_write_at(*static_cast<MPI_File*>(handle_), static_cast<MPI_Offset>(position), p,
+                            static_cast<int>(n), MPI_BYTE, MPI_STATUS_IGNORE) != MPI_SUCCESS)
+        throw InputError(fmt::format("{}: write failed", part_));
+      p += n;
+      position += n;
+      bytes -= n;
+    }
+    return;
+  }
+#endif
+  auto* f = static_cast<std::FILE*>(handle_);
+  if (fseeko(f, static_cast<off_t>(position), SEEK_SET) != 0 ||
+      std::fwrite(p, 1, bytes, f) != bytes)
+    throw InputError(fmt::format("{}: write failed ({})", part_, std::strerror(errno)));
+}
+
+void SharedFile::commit() {
+  if (!handle_)
+    return;
+  const bool was_mpi = mpi_;
+  close();
+  if (!was_mpi || process_rank() == 0)
+    std::rename(part_.c_str(), path_.c_str());
+}
 
 StableStep distributed_stable_step(SubdomainRun& run, const Lattice& whole) {
   const Simulation& sim = run.sim();

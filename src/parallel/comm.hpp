@@ -84,11 +84,17 @@ public:
 
 private:
   std::string path_, part_;
-  void* handle_ = nullptr; // MPI_File, or std::FILE* in a build without MPI
+  void close();
+  void* handle_ = nullptr; // MPI_File (mpi_), or std::FILE*
+  bool mpi_ = false;
 };
 
 double min_over_processes(double x);
 double max_over_processes(double x);
+// The sum (counts, exact below 2^53).
+double sum_over_processes(double x);
+// The sum modulo 2^64 (checksums that add over the pieces of a file).
+std::uint64_t wrapping_sum_over_processes(std::uint64_t x);
 void barrier();
 
 } // namespace ldem

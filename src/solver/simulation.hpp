@@ -160,8 +160,9 @@ public:
   void append_histories(index_t first, index_t count, std::vector<double>& out) const;
   void assign_histories(index_t first, index_t count, const double* in);
   // After the displacements and histories are assigned: the step count, the energy
-  // accumulators (Ledger::state), the last report and the events not yet taken, as
-  // save_state would give them. The rows' damage flags are derived again from the histories.
+  // accumulators (Ledger::state), the last report and the events not yet taken: what a
+  // checkpoint holds (io/checkpoint.hpp) besides the arrays. The rows' damage flags are derived
+  // again from the histories.
   void restore_progress(std::uint64_t step, const Ledger::State& ledger, const EnergyReport& report,
                         std::vector<Event> pending);
   const Ledger::State& ledger_state() const { return ledger_.state(); }
@@ -196,12 +197,6 @@ public:
   Vec3 nodal_load(index_t node) const {
     return px_.empty() ? Vec3{} : Vec3{px_[node], py_[node], pz_[node]};
   }
-
-  // The state a run needs to continue bit for bit (displacements u_n and u_{n-1}, histories,
-  // step, energy accumulators, events not yet taken), appended to / read from a byte buffer.
-  // load_state throws InputError if the buffer does not fit this lattice.
-  void save_state(std::string& out) const;
-  void load_state(const std::string& in, std::size_t& pos);
 
   // The first node whose displacement is not finite or beyond 1e3 times the body's size (a
   // numerical blow-up), or num_nodes() if none.
