@@ -2,7 +2,8 @@
 # Every shipped case (full length; the long fatigue plate only on its coarse lattice) run on one
 # process and under mpirun on 2, 3 and 4, each folder compared with the one-process folder by
 # tests/compare_runs.py; then two of them made 4 modules thick (with random fields on the
-# tutorial plate) on boxes over y and z: 2 x 1, 4 x 1, 3 x 1 and 2 x 2 processes.
+# tutorial plate) on boxes over y and z: 2 x 1, 4 x 1, 3 x 1 and 2 x 2 processes; and the
+# memory of each process on an 80^3 cube.
 # usage (from the source folder, after the release build):
 #   bash docs/validation/distributed/run.sh [OUT_DIR]
 set -uo pipefail
@@ -45,4 +46,19 @@ for n in thick_notched_plate thick_graded_modulus_toughness; do
     /usr/bin/python3 tests/compare_runs.py "$OUT/$n/1" "$OUT/$n/${py}x$pz" || fails=$((fails + 1))
   done
 done
+# Memory: an 80^3 cube (7.2 million bars) with a random E and Gf per bar, on one process and
+# on two; the peak resident memory of each process (Debian package `time`), the folders
+# compared.
+sed -e 's/^modules = .*/modules = [80, 80, 80]/' -e '/^plane_strain/d' \
+  -e 's/^edge2 = .*/edge2 = [0.0, 0.41, 0.0]/' -e 's/^end = .*/end = 2.0e-5/' \
+  -e 's/^E = .*/E = { type = "weibull", mean = 35.0e9, cv = 0.1, seed = 3 }/' \
+  -e 's/^Gf = .*/Gf = { type = "weibull", mean = 12.0, cv = 0.1, seed = 5 }/' \
+  -e 's/^energy_every = .*/energy_every = 50\nvtu = false/' \
+  cases/tutorial/notched_plate.toml >"$OUT/cube80.toml"
+rm -rf "${OUT:?}/cube80"
+/usr/bin/time -f "cube80, 1 process: peak %M kB, %e s" \
+  "$LDEM" run "$OUT/cube80.toml" --out "$OUT/cube80/1" --no-plot --threads 1 2>&1 | grep peak
+mpirun -np 2 --oversubscribe sh -c 'exec /usr/bin/time -f "cube80, rank $OMPI_COMM_WORLD_RANK of 2: peak %M kB, %e s" "$0" "$@"' \
+  "$LDEM" run "$OUT/cube80.toml" --out "$OUT/cube80/2" --no-plot --threads 1 2>&1 | grep peak
+/usr/bin/python3 tests/compare_runs.py "$OUT/cube80/1" "$OUT/cube80/2" || fails=$((fails + 1))
 exit $fails
