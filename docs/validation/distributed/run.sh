@@ -58,7 +58,9 @@ sed -e 's/^modules = .*/modules = [80, 80, 80]/' -e '/^plane_strain/d' \
 rm -rf "${OUT:?}/cube80"
 /usr/bin/time -f "cube80, 1 process: peak %M kB, %e s" \
   "$LDEM" run "$OUT/cube80.toml" --out "$OUT/cube80/1" --no-plot --threads 1 2>&1 | grep peak
-mpirun -np 2 --oversubscribe sh -c 'exec /usr/bin/time -f "cube80, rank $OMPI_COMM_WORLD_RANK of 2: peak %M kB, %e s" "$0" "$@"' \
-  "$LDEM" run "$OUT/cube80.toml" --out "$OUT/cube80/2" --no-plot --threads 1 2>&1 | grep peak
+mpirun -np 2 --oversubscribe sh -c 'exec /usr/bin/time -o "$0.$OMPI_COMM_WORLD_RANK" \
+  -f "cube80, rank $OMPI_COMM_WORLD_RANK of 2: peak %M kB, %e s" "$@"' "$OUT/cube80-time" \
+  "$LDEM" run "$OUT/cube80.toml" --out "$OUT/cube80/2" --no-plot --threads 1 >/dev/null 2>&1
+cat "$OUT/cube80-time.0" "$OUT/cube80-time.1"
 /usr/bin/python3 tests/compare_runs.py "$OUT/cube80/1" "$OUT/cube80/2" || fails=$((fails + 1))
 exit $fails
