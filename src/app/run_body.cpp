@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <fstream>
 #include <numeric>
+#include <optional>
 
 namespace ldem {
 
@@ -82,7 +83,6 @@ RunBody::RunBody(BuiltCase& c, ProcessGrid grid, int rank)
   // The window's table names the body's bars and sums up the bars this process owns; the
   // processes' summaries combine into the body's below.
   BodyWindow window;
-  window.body = &whole;
   window.body_bar = [&](index_t b) { return global_bar(sub, local, whole, b); };
   window.counted = [&](index_t b) {
     const BarAddress a = local.bar_address(b);

@@ -80,7 +80,6 @@ std::optional<std::string> check_ductility(const DuctilitySummary& s, const Mate
 // (those its process owns, so that the processes' summaries combine into the body's), and
 // K_r < 1 is left to the caller, who judges the combined summary with check_ductility.
 struct BodyWindow {
-  const Lattice* body = nullptr;
   std::function<index_t(index_t)> body_bar; // the body's number of a window bar
   std::function<bool(index_t)> counted;     // window bar -> counted in the summary
 };

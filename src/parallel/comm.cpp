@@ -310,19 +310,21 @@ SharedFile::~SharedFile() {
   close();
 }
 
-void SharedFile::close() {
+bool SharedFile::close() {
   if (!handle_)
-    return;
+    return true;
+  bool ok = true;
 #ifdef LDEM_HAVE_MPI
   if (mpi_) {
-    MPI_File_close(static_cast<MPI_File*>(handle_));
+    ok = MPI_File_close(static_cast<MPI_File*>(handle_)) == MPI_SUCCESS;
     delete static_cast<MPI_File*>(handle_);
     handle_ = nullptr;
-    return;
+    return ok;
   }
 #endif
-  std::fclose(static_cast<std::FILE*>(handle_));
+  ok = std::fclose(static_cast<std::FILE*>(handle_)) == 0; // (a full disk shows here)
   handle_ = nullptr;
+  return ok;
 }
 
 void SharedFile::write_at(std::uint64_t position, const void* data, std::size_t bytes) {
@@ -351,9 +353,12 @@ void SharedFile::commit() {
   if (!handle_)
     return;
   const bool was_mpi = mpi_;
-  close();
-  if (!was_mpi || process_rank() == 0)
-    std::rename(part_.c_str(), path_.c_str());
+  if (!close())
+    throw InputError(was_mpi ? fmt::format("{}: write failed", part_)
+                             : fmt::format("{}: write failed ({})", part_, std::strerror(errno)));
+  if ((!was_mpi || process_rank() == 0) && std::rename(part_.c_str(), path_.c_str()) != 0)
+    throw InputError(fmt::format("{}: cannot rename to {} ({})", part_, path_,
+                                 std::strerror(errno)));
 }
 
 StableStep distributed_stable_step(SubdomainRun& run, const Lattice& whole) {

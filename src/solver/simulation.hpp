@@ -113,9 +113,8 @@ public:
   // The boundary conditions and loads the simulation was built with.
   const Conditions& conditions() const { return cond_; }
 
-  // Replaces dt before the first step, the half-step velocities kept (distributed runs agree
-  // on the smallest of their ranks' steps). Throws InputError after the first step, or for a
-  // dt that is not positive or above the stable limit.
+  // Replaces dt before the first step, the half-step velocities kept. Throws InputError after
+  // the first step, or for a dt that is not positive or above the stable limit.
   void set_time_step(double dt);
   // The same, with the stable step it is checked against (a run built with
   // SolverOptions::defer_time_step).
