@@ -357,8 +357,8 @@ void SharedFile::commit() {
     throw InputError(was_mpi ? fmt::format("{}: write failed", part_)
                              : fmt::format("{}: write failed ({})", part_, std::strerror(errno)));
   if ((!was_mpi || process_rank() == 0) && std::rename(part_.c_str(), path_.c_str()) != 0)
-    throw InputError(fmt::format("{}: cannot rename to {} ({})", part_, path_,
-                                 std::strerror(errno)));
+    throw InputError(
+        fmt::format("{}: cannot rename to {} ({})", part_, path_, std::strerror(errno)));
 }
 
 StableStep distributed_stable_step(SubdomainRun& run, const Lattice& whole) {

@@ -84,7 +84,7 @@ public:
 
 private:
   std::string path_, part_;
-  bool close(); // false if the last writes failed
+  bool close();            // false if the last writes failed
   void* handle_ = nullptr; // MPI_File (mpi_), or std::FILE*
   bool mpi_ = false;
 };
