@@ -472,6 +472,25 @@ std::vector<Span> RunBody::node_spans(bool owned) const {
   return {{0, 0, lattice().num_nodes()}};
 }
 
+template <class F> void RunBody::for_each_owned_piece(F&& visit) {
+  // u_n and u_{n-1}, x, y and z (arrays 0 to 5 of the body's nodes), then the histories (after
+  // them): a piece per span of owned nodes or bars.
+  const std::uint64_t nodes = lattice().num_nodes();
+  std::vector<double>& buf = send_;
+  for (bool previous : {false, true})
+    for (const Span& s : node_spans(true)) {
+      buf.clear();
+      sim().append_displacements(s.local_first, s.count, buf, previous);
+      for (std::uint64_t d = 0; d < 3; ++d)
+        visit(((previous ? 3 : 0) + d) * nodes + s.global_first, buf.data() + d * s.count, s.count);
+    }
+  for (const Span& s : bar_spans(true)) {
+    buf.clear();
+    sim().append_histories(s.local_first, s.count, buf);
+    visit(6 * nodes + s.global_first, buf.data(), s.count);
+  }
+}
+
 std::vector<Span> RunBody::bar_spans(bool owned) const {
   if (run_)
     return subdomain_bar_spans(run_->subdomain(), lattice(), owned);
@@ -535,27 +554,11 @@ void RunBody::write_checkpoint(const std::string& path, const std::string& meta)
   const std::uint64_t at = ck::Header::arrays_offset(static_cast<std::uint64_t>(sizes[0]),
                                                      static_cast<std::uint64_t>(sizes[1]));
   SharedFile file(path);
-  // The owned nodes' u_n and u_{n-1} (x, y, z: arrays 0 to 5) and the owned bars' histories
-  // (after the six node arrays), each value at its place in the body's order.
-  std::vector<double>& buf = send_;
-  auto write_piece = [&](std::uint64_t place, const double* v, index_t count) {
+  for_each_owned_piece([&](std::uint64_t place, const double* v, index_t count) {
     for (index_t i = 0; i < count; ++i)
       sum += ck::word_hash(place + i, v[i]);
     file.write_at(at + 8 * place, v, 8 * std::size_t{count});
-  };
-  for (bool previous : {false, true})
-    for (const Span& s : node_spans(true)) {
-      buf.clear();
-      sim().append_displacements(s.local_first, s.count, buf, previous);
-      for (std::uint64_t d = 0; d < 3; ++d)
-        write_piece(((previous ? 3 : 0) + d) * nodes + s.global_first, buf.data() + d * s.count,
-                    s.count);
-    }
-  for (const Span& s : bar_spans(true)) {
-    buf.clear();
-    sim().append_histories(s.local_first, s.count, buf);
-    write_piece(6 * nodes + s.global_first, buf.data(), s.count);
-  }
+  });
   sum = wrapping_sum_over_processes(sum);
   if (writes()) {
     const std::string head = ck::header_bytes(meta, progress, sum) + meta + progress;
@@ -627,21 +630,10 @@ std::string RunBody::read_checkpoint(const std::string& path) {
   std::uint64_t sum = writes() ? ck::fnv1a(h.meta.data(), h.meta.size()) +
                                      ck::fnv1a(h.progress.data(), h.progress.size())
                                : 0;
-  for (bool previous : {false, true})
-    for (const Span& sp : node_spans(true)) {
-      buf.clear();
-      s.append_displacements(sp.local_first, sp.count, buf, previous);
-      for (std::uint64_t d = 0; d < 3; ++d)
-        for (index_t i = 0; i < sp.count; ++i)
-          sum += ck::word_hash(((previous ? 3 : 0) + d) * nodes + sp.global_first + i,
-                               buf[d * sp.count + i]);
-    }
-  for (const Span& sp : bar_spans(true)) {
-    buf.clear();
-    s.append_histories(sp.local_first, sp.count, buf);
-    for (index_t i = 0; i < sp.count; ++i)
-      sum += ck::word_hash(6 * nodes + sp.global_first + i, buf[i]);
-  }
+  for_each_owned_piece([&](std::uint64_t place, const double* v, index_t count) {
+    for (index_t i = 0; i < count; ++i)
+      sum += ck::word_hash(place + i, v[i]);
+  });
   if (wrapping_sum_over_processes(sum) != h.checksum)
     throw InputError(fmt::format("{}: checkpoint checksum mismatch: the file is corrupt", path));
   Ledger::State ledger;

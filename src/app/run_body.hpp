@@ -95,6 +95,9 @@ private:
   // This process's nodes or bars in spans of the body's order: those it owns, or its window.
   std::vector<Span> node_spans(bool owned) const;
   std::vector<Span> bar_spans(bool owned) const;
+  // Calls visit(place, values, count) for every piece of the checkpoint's arrays this process
+  // owns: its values at places counted in doubles from the arrays' start (io/checkpoint.hpp).
+  template <class F> void for_each_owned_piece(F&& visit);
   // This process's part of a report: probe terms, energy rows and sums, events (each list
   // preceded by its length), and the first process's reading of all parts.
   void append_probe_terms(std::vector<double>& out) const;
