@@ -232,6 +232,22 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   plane_buffers_.resize(3 * static_cast<std::size_t>(threads_));
   for (auto& b : plane_buffers_)
     b.assign(lat_.plane_buffer_size(), 0.0);
+  for (const Line& line : lines_) {
+    std::size_t n = 0;
+    for (std::size_t r = line.bar_begin; r < line.bar_end; ++r)
+      n += lat_.family(bar_rows_[r].family).ni;
+    line_store_stride_ = std::max(line_store_stride_, n);
+  }
+  line_stores_.resize(2 * static_cast<std::size_t>(threads_));
+  for (auto& b : line_stores_)
+    b.assign(planes_.size() * line_store_stride_, 0.0);
+  // About 128 KiB of bar forces per block: with the plane below's and the displacements they
+  // read, well inside a core's L2 cache (measured on 64^3: 16 lines, 5 to 10 % faster than
+  // whole planes on 2 threads; 8 lines slower than 16).
+  const auto line_bytes =
+      static_cast<std::int64_t>(8 * std::max<std::size_t>(line_store_stride_, 1));
+  block_lines_ = opt_.block_lines > 0 ? opt_.block_lines
+                                      : std::clamp<std::int64_t>((128 << 10) / line_bytes, 8, 64);
   thread_scratch_.resize(static_cast<std::size_t>(threads_));
   for (auto& sc : thread_scratch_)
     sc.resize(4 * (lat_.nx() + 1ull)); // fx, fy, fz and a fourth row for the ledger sums
@@ -782,70 +798,103 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
   }
 }
 
-// Each thread takes a slab of k-planes and walks it upwards, bars of a plane then its nodes,
-// so the bar forces are still in cache when they are gathered. A node plane needs the bars
-// of its own plane and of the plane below; the plane below a slab belongs to the next
-// thread down, which therefore computes its top bar plane first, before the one barrier.
-// The split into slabs changes which thread does a row, never how the row is computed.
+// The bar forces of line l between a plane buffer and a packed store of one line.
+void Simulation::pack_bar_line(std::size_t l, const double* plane, double* packed) const {
+  for (std::size_t r = lines_[l].bar_begin; r < lines_[l].bar_end; ++r) {
+    const FamilyInfo& fi = lat_.family(bar_rows_[r].family);
+    const double* from = plane + fi.plane_offset + std::size_t{fi.plane_stride} * bar_rows_[r].j;
+    packed = std::copy(from, from + fi.ni, packed);
+  }
+}
+
+void Simulation::unpack_bar_line(std::size_t l, const double* packed, double* plane) const {
+  for (std::size_t r = lines_[l].bar_begin; r < lines_[l].bar_end; ++r) {
+    const FamilyInfo& fi = lat_.family(bar_rows_[r].family);
+    std::copy(packed, packed + fi.ni,
+              plane + fi.plane_offset + std::size_t{fi.plane_stride} * bar_rows_[r].j);
+    packed += fi.ni;
+  }
+}
+
+// Node line (j, k) needs the bar lines j - 1 and j of its plane and of the plane below, so
+// the bars of a line are computed moments before the nodes that gather them. Each thread
+// takes a box of lines: a slab of k-planes (all j) when the body has planes enough, else a
+// range of j (all k: a body thin along z). It walks its box in blocks of block_lines_ lines
+// along j, and inside a block plane by plane upwards, bars of a block's lines then its nodes:
+// a block's bar forces, and the displacements they read, stay in the core's own cache (on a
+// whole plane of a large body they would not). Bar forces go to the thread's plane buffers,
+// alternating with k (only the block's lines are touched). Two lines are needed from
+// elsewhere: line jb - 1 of each plane, computed with the block before (kept packed in
+// `carry`), and what the neighbouring thread owns: the top plane of the slab below, or the
+// last line of the j range below. Each thread computes those first, before the one barrier.
+// Every bar line is computed once per step, whatever the threads and blocks, so they change
+// which thread does a row, never how the row is computed.
 template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() {
   const auto nplanes = static_cast<std::int64_t>(planes_.size());
+  const auto nlines = static_cast<std::int64_t>(lat_.ny()) + 1; // lines per plane
 #pragma omp parallel num_threads(threads_) if (lat_.num_bars() > kParallelMinItems)
   {
     const std::int64_t nt = omp_get_num_threads(), t = omp_get_thread_num();
-    if (nplanes < 4 * nt) {
-      // A body thin along z (a plate in x-y): too few planes for slabs, so every plane is
-      // shared out by lines. Node line j needs bar lines j - 1 and j of its plane and the plane
-      // below: each thread first computes its last bar line, the others wait for it, then each
-      // does the rest of its lines; a second barrier closes the plane. The planes' bar forces
-      // go to two buffers shared by all threads, alternating.
+    const bool slabs = nplanes >= 4 * nt;
+    auto first = [nt](std::int64_t n, std::int64_t u) { return u * n / nt; };
+    const std::int64_t k0 = slabs ? first(nplanes, t) : 0;
+    const std::int64_t k1 = slabs ? first(nplanes, t + 1) : nplanes;
+    const std::int64_t j0 = slabs ? 0 : first(nlines, t);
+    const std::int64_t j1 = slabs ? nlines : first(nlines, t + 1);
+    const auto line = [&](std::int64_t j, std::int64_t k) { return planes_[k].line_begin + j; };
+    const auto bars = [&](std::int64_t j, std::int64_t k, double* s) {
+      bar_rows(lines_[line(j, k)].bar_begin, lines_[line(j, k)].bar_end, s, Report);
+    };
+    const auto ut = static_cast<std::size_t>(t);
+    double* const slot[2] = {plane_buffers_[3 * ut].data(), plane_buffers_[3 * ut + 1].data()};
+    double* const top = plane_buffers_[3 * ut + 2].data();
+    const auto packed = [&](std::int64_t u, int which, std::int64_t k) {
+      return line_stores_[2 * static_cast<std::size_t>(u) + which].data() +
+             static_cast<std::size_t>(k) * line_store_stride_;
+    };
+    constexpr int kCarry = 0, kEdge = 1;
+    // Lines the thread's neighbours read: the top plane of a slab (read whole from `top`), or
+    // the last line of a j range in every plane (read packed).
+    const bool box = k1 > k0 && j1 > j0;
+    const bool edge_out = box && !slabs && j1 < nlines;
+    if (box && slabs)
+      for (std::int64_t j = 0; j < nlines; ++j)
+        bars(j, k1 - 1, top);
+    if (edge_out)
       for (std::int64_t k = 0; k < nplanes; ++k) {
-        const auto nl = static_cast<std::int64_t>(planes_[k].line_end - planes_[k].line_begin);
-        const std::int64_t l0 = static_cast<std::int64_t>(planes_[k].line_begin) + t * nl / nt;
-        const std::int64_t l1 =
-            static_cast<std::int64_t>(planes_[k].line_begin) + (t + 1) * nl / nt;
-        double* s_plane = plane_buffers_[static_cast<std::size_t>(k % 2)].data();
-        const double* s_below =
-            k > 0 ? plane_buffers_[static_cast<std::size_t>((k - 1) % 2)].data() : nullptr;
-        if (l1 > l0)
-          bar_rows(lines_[l1 - 1].bar_begin, lines_[l1 - 1].bar_end, s_plane, Report);
-#pragma omp barrier
-        for (std::int64_t l = l0; l < l1; ++l) {
-          if (l != l1 - 1)
-            bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane, Report);
-          node_rows_range<Damped, Loads, Report>(lines_[l].node_begin, lines_[l].node_end, s_plane,
-                                                 s_below);
-        }
-#pragma omp barrier
+        bars(j1 - 1, k, top);
+        pack_bar_line(line(j1 - 1, k), top, packed(t, kEdge, k));
       }
-    } else {
-      auto first = [&](std::int64_t u) { return u * nplanes / nt; };
-      const std::int64_t p0 = first(t), p1 = first(t + 1);
-      // Plane k's bar forces: the top plane of a slab in that thread's third buffer (the next
-      // thread up reads it), the others alternating in its first two.
-      auto buffer = [&](std::int64_t k) {
-        std::int64_t u = t;
-        while (k < first(u))
-          --u;
-        while (k >= first(u + 1))
-          ++u;
-        const std::size_t slot = k == first(u + 1) - 1 ? 2 : static_cast<std::size_t>(k % 2);
-        return plane_buffers_[3 * static_cast<std::size_t>(u) + slot].data();
-      };
-      if (p1 > p0) {
-        double* top = buffer(p1 - 1);
-        for (std::size_t l = planes_[p1 - 1].line_begin; l < planes_[p1 - 1].line_end; ++l)
-          bar_rows(lines_[l].bar_begin, lines_[l].bar_end, top, Report);
-      }
+    // The thread whose j range holds line j0 - 1 (ranges may be empty when lines are few).
+    std::int64_t below = t - 1;
+    while (below > 0 && first(nlines, below) > j0 - 1)
+      --below;
 #pragma omp barrier
-      for (std::int64_t k = p0; k < p1; ++k) {
-        double* s_plane = buffer(k);
-        const double* s_below = k > 0 ? buffer(k - 1) : nullptr;
-        for (std::size_t l = planes_[k].line_begin; l < planes_[k].line_end; ++l) {
-          if (k != p1 - 1)
-            bar_rows(lines_[l].bar_begin, lines_[l].bar_end, s_plane, Report);
-          node_rows_range<Damped, Loads, Report>(lines_[l].node_begin, lines_[l].node_end, s_plane,
-                                                 s_below);
+    for (std::int64_t jb = j0; box && jb < j1; jb += block_lines_) {
+      const std::int64_t je = std::min<std::int64_t>(jb + block_lines_, j1);
+      for (std::int64_t k = k0; k < k1; ++k) {
+        const bool at_top = slabs && k == k1 - 1;
+        double* s_plane = at_top ? top : slot[k % 2];
+        const double* s_below = k == 0   ? nullptr
+                                : k > k0 ? slot[(k - 1) % 2]
+                                         : plane_buffers_[3 * ut - 1].data(); // slab below's top
+        if (!at_top) {
+          if (jb > j0)
+            unpack_bar_line(line(jb - 1, k), packed(t, kCarry, k), s_plane);
+          else if (jb > 0)
+            unpack_bar_line(line(jb - 1, k), packed(below, kEdge, k), s_plane);
+          for (std::int64_t j = jb; j < je; ++j) {
+            if (edge_out && j == j1 - 1)
+              unpack_bar_line(line(j, k), packed(t, kEdge, k), s_plane);
+            else
+              bars(j, k, s_plane);
+          }
+          if (je < j1)
+            pack_bar_line(line(je - 1, k), s_plane, packed(t, kCarry, k));
         }
+        for (std::int64_t j = jb; j < je; ++j)
+          node_rows_range<Damped, Loads, Report>(lines_[line(j, k)].node_begin,
+                                                 lines_[line(j, k)].node_end, s_plane, s_below);
       }
     }
   }
@@ -1230,6 +1279,8 @@ double Simulation::bytes_per_module() const {
   total += bytes(held_) + bytes(row_links_) + bytes(row_link_count_) + bytes(row_fused_) +
            bytes(row_held_) + bytes(row_damaged_) + bytes(node_rows_) + bytes(bar_rows_);
   for (const auto& b : plane_buffers_)
+    total += bytes(b);
+  for (const auto& b : line_stores_)
     total += bytes(b);
   if (table_.per_bar())
     total += bytes(table_.k_bar()) + bytes(table_.e_p_bar()) + bytes(table_.e_r_bar());

@@ -71,6 +71,9 @@ struct SolverOptions {
   // The stable step and dt are given later (set_time_step with a StableStep): a distributed
   // run's window, whose step is the whole body's.
   bool defer_time_step = false;
+  // Lines per block of the step's walk (advance_rows); 0: chosen from the line's size. The
+  // results do not depend on it; tests vary it to check that.
+  int block_lines = 0;
 };
 
 // dt by the rule of `step`: a fraction of the stable step, given, or the paper's Courant
@@ -220,6 +223,9 @@ private:
   // Bars of plane rows [begin, end) into that plane's force buffer `s`; with `energies`, the
   // elastic energy of each intact row into energy_rows_u_.
   void bar_rows(std::size_t begin, std::size_t end, double* s, bool energies);
+  // The bar forces of line l from a plane buffer to a packed store, and back.
+  void pack_bar_line(std::size_t l, const double* plane, double* packed) const;
+  void unpack_bar_line(std::size_t l, const double* packed, double* plane) const;
   // Elastic and dissipated energy of all bars; `intact_done`: the bar pass has already put the
   // intact rows' energies in energy_rows_u_.
   BarEnergies sum_bar_energies(bool intact_done) const;
@@ -278,6 +284,10 @@ private:
   // s = F / l lives only in per-thread plane buffers during a step (see advance_rows).
   std::vector<double> h_;
   std::vector<std::vector<double>> plane_buffers_; // 3 per thread: two alternating, one top
+  // 2 per thread: one bar line per plane, packed (the block's carry, the edge a neighbour reads)
+  std::vector<std::vector<double>> line_stores_;
+  std::size_t line_store_stride_ = 0; // the most bars a line has
+  std::int64_t block_lines_ = 1;      // lines per block of the walk (advance_rows)
 
   // Per-row partial sums (deterministic reductions) and per-thread scratch.
   std::vector<double> row_damping_, row_load_mid_, row_load_half_, row_kinetic_;
