@@ -426,22 +426,33 @@ bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k
   const __m512d vk = _mm512_set1_pd(k), vkl0 = _mm512_set1_pd(k * l0);
   const __m512d vlp2 = _mm512_set1_pd(lp2), v15 = _mm512_set1_pd(1.5), v05 = _mm512_set1_pd(0.5);
   __mmask8 past = 0;
-  for (index_t i = 0; i < n; i += 8) {
-    const __mmask8 m = n - i >= 8 ? __mmask8(0xFF) : __mmask8((1u << (n - i)) - 1u);
-    const __m512d dx = _mm512_add_pd(vx, _mm512_sub_pd(_mm512_maskz_loadu_pd(m, r.ubx + i),
-                                                       _mm512_maskz_loadu_pd(m, r.uax + i)));
-    const __m512d dy = _mm512_add_pd(vy, _mm512_sub_pd(_mm512_maskz_loadu_pd(m, r.uby + i),
-                                                       _mm512_maskz_loadu_pd(m, r.uay + i)));
-    const __m512d dz = _mm512_add_pd(vz, _mm512_sub_pd(_mm512_maskz_loadu_pd(m, r.ubz + i),
-                                                       _mm512_maskz_loadu_pd(m, r.uaz + i)));
+  // Whole vectors with plain loads and stores, the row's tail (n not a multiple of 8) masked.
+  const auto vector = [&]<bool Tail>(index_t i, __mmask8 m) {
+    const auto load = [m](const double* p) {
+      return Tail ? _mm512_maskz_loadu_pd(m, p) : _mm512_loadu_pd(p);
+    };
+    const __m512d dx = _mm512_add_pd(vx, _mm512_sub_pd(load(r.ubx + i), load(r.uax + i)));
+    const __m512d dy = _mm512_add_pd(vy, _mm512_sub_pd(load(r.uby + i), load(r.uay + i)));
+    const __m512d dz = _mm512_add_pd(vz, _mm512_sub_pd(load(r.ubz + i), load(r.uaz + i)));
     const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
     const __m512d h = _mm512_mul_pd(v05, l2);
     __m512d y = _mm512_rsqrt14_pd(l2);
     y = _mm512_mul_pd(y, _mm512_fnmadd_pd(_mm512_mul_pd(h, y), y, v15));
     y = _mm512_mul_pd(y, _mm512_fnmadd_pd(_mm512_mul_pd(h, y), y, v15));
-    _mm512_mask_storeu_pd(r.s + i, m, _mm512_fnmadd_pd(vkl0, y, vk));
-    past |= _mm512_mask_cmp_pd_mask(m, l2, vlp2, _CMP_GT_OQ);
-  }
+    const __m512d s = _mm512_fnmadd_pd(vkl0, y, vk);
+    if constexpr (Tail) {
+      _mm512_mask_storeu_pd(r.s + i, m, s);
+      past |= _mm512_mask_cmp_pd_mask(m, l2, vlp2, _CMP_GT_OQ);
+    } else {
+      _mm512_storeu_pd(r.s + i, s);
+      past |= _mm512_cmp_pd_mask(l2, vlp2, _CMP_GT_OQ);
+    }
+  };
+  index_t i = 0;
+  for (; i + 8 <= n; i += 8)
+    vector.template operator()<false>(i, 0xFF);
+  if (i < n)
+    vector.template operator()<true>(i, static_cast<__mmask8>((1u << (n - i)) - 1u));
   return past != 0;
 #else
   int past = 0;
