@@ -220,6 +220,16 @@ TEST(Fracture, OneAndTwoThreadsGiveIdenticalResults) {
 namespace ldem {
 namespace {
 
+// Every node's displacement, x y z node after node.
+std::vector<double> displacements(const Simulation& sim) {
+  std::vector<double> u;
+  for (index_t node = 0; node < sim.lattice().num_nodes(); ++node) {
+    const Vec3 d = sim.displacement(node);
+    u.insert(u.end(), {d.x, d.y, d.z});
+  }
+  return u;
+}
+
 // A plate lying in x-y (one module along z) has too few k-planes for thread slabs and is
 // shared out line by line instead: 1 and 2 threads must still agree bit for bit.
 std::vector<double> thin_plate_run(int threads, std::vector<Event>& events, int block_lines = 0) {
@@ -242,11 +252,7 @@ std::vector<double> thin_plate_run(int threads, std::vector<Event>& events, int 
   for (int s = 0; sim.time() < 120.0; ++s)
     sim.step(s % 50 == 0);
   events = sim.take_events();
-  std::vector<double> u;
-  for (index_t node = 0; node < lat.num_nodes(); ++node) {
-    const Vec3 d = sim.displacement(node);
-    u.insert(u.end(), {d.x, d.y, d.z});
-  }
+  std::vector<double> u = displacements(sim);
   omp_set_num_threads(before);
   return u;
 }
@@ -292,11 +298,7 @@ std::vector<double> notched_cube_run(int threads, int block_lines, std::vector<E
   for (int s = 0; sim.time() < 60.0; ++s)
     sim.step(s % 25 == 0);
   events = sim.take_events();
-  std::vector<double> u;
-  for (index_t node = 0; node < lat.num_nodes(); ++node) {
-    const Vec3 d = sim.displacement(node);
-    u.insert(u.end(), {d.x, d.y, d.z});
-  }
+  std::vector<double> u = displacements(sim);
   u.push_back(sim.last_report().elastic);
   u.push_back(sim.last_report().kinetic);
   u.push_back(sim.last_report().damage_dissipated);
