@@ -809,20 +809,16 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
   }
 }
 
-// The bar forces of line l between a plane buffer and a packed store of one line.
-void Simulation::pack_bar_line(std::size_t l, const double* plane, double* packed) const {
+// The bar forces of line l from a plane buffer into a packed store of one line (Pack), or back.
+template <bool Pack>
+void Simulation::move_bar_line(std::size_t l, double* plane, double* packed) const {
   for (std::size_t r = lines_[l].bar_begin; r < lines_[l].bar_end; ++r) {
     const FamilyInfo& fi = lat_.family(bar_rows_[r].family);
-    const double* from = plane + fi.plane_offset + std::size_t{fi.plane_stride} * bar_rows_[r].j;
-    packed = std::copy(from, from + fi.ni, packed);
-  }
-}
-
-void Simulation::unpack_bar_line(std::size_t l, const double* packed, double* plane) const {
-  for (std::size_t r = lines_[l].bar_begin; r < lines_[l].bar_end; ++r) {
-    const FamilyInfo& fi = lat_.family(bar_rows_[r].family);
-    std::copy(packed, packed + fi.ni,
-              plane + fi.plane_offset + std::size_t{fi.plane_stride} * bar_rows_[r].j);
+    double* row = plane + fi.plane_offset + std::size_t{fi.plane_stride} * bar_rows_[r].j;
+    if constexpr (Pack)
+      std::copy(row, row + fi.ni, packed);
+    else
+      std::copy(packed, packed + fi.ni, row);
     packed += fi.ni;
   }
 }
@@ -874,7 +870,7 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
     if (edge_out)
       for (std::int64_t k = 0; k < nplanes; ++k) {
         bars(j1 - 1, k, top);
-        pack_bar_line(line(j1 - 1, k), top, packed(t, kEdge, k));
+        move_bar_line<true>(line(j1 - 1, k), top, packed(t, kEdge, k));
       }
     // The thread whose j range holds line j0 - 1 (ranges may be empty when lines are few).
     std::int64_t below = t - 1;
@@ -891,17 +887,17 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
                                          : plane_buffers_[3 * ut - 1].data(); // slab below's top
         if (!at_top) {
           if (jb > j0)
-            unpack_bar_line(line(jb - 1, k), packed(t, kCarry, k), s_plane);
+            move_bar_line<false>(line(jb - 1, k), s_plane, packed(t, kCarry, k));
           else if (jb > 0)
-            unpack_bar_line(line(jb - 1, k), packed(below, kEdge, k), s_plane);
+            move_bar_line<false>(line(jb - 1, k), s_plane, packed(below, kEdge, k));
           for (std::int64_t j = jb; j < je; ++j) {
             if (edge_out && j == j1 - 1)
-              unpack_bar_line(line(j, k), packed(t, kEdge, k), s_plane);
+              move_bar_line<false>(line(j, k), s_plane, packed(t, kEdge, k));
             else
               bars(j, k, s_plane);
           }
           if (je < j1)
-            pack_bar_line(line(je - 1, k), s_plane, packed(t, kCarry, k));
+            move_bar_line<true>(line(je - 1, k), s_plane, packed(t, kCarry, k));
         }
         for (std::int64_t j = jb; j < je; ++j)
           node_rows_range<Damped, Loads, Report>(lines_[line(j, k)].node_begin,

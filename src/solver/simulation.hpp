@@ -223,9 +223,8 @@ private:
   // Bars of plane rows [begin, end) into that plane's force buffer `s`; with `energies`, the
   // elastic energy of each intact row into energy_rows_u_.
   void bar_rows(std::size_t begin, std::size_t end, double* s, bool energies);
-  // The bar forces of line l from a plane buffer to a packed store, and back.
-  void pack_bar_line(std::size_t l, const double* plane, double* packed) const;
-  void unpack_bar_line(std::size_t l, const double* packed, double* plane) const;
+  // The bar forces of line l from a plane buffer into a packed store (Pack), or back.
+  template <bool Pack> void move_bar_line(std::size_t l, double* plane, double* packed) const;
   // Elastic and dissipated energy of all bars; `intact_done`: the bar pass has already put the
   // intact rows' energies in energy_rows_u_.
   BarEnergies sum_bar_energies(bool intact_done) const;
