@@ -57,8 +57,9 @@ struct FamilyInfo {
   index_t ni = 0, nj = 0, nk = 0; // block of bar indices
   index_t offset = 0;             // global number of the family's first bar
   // Position of the family's bar (i, j) of a k-plane in a plane buffer: plane_offset +
-  // plane_stride * j + i. Rows are stride ni + 1 apart and the block starts one slot in, so
-  // index -1 and ni of every row are zero pads (the buffer's users keep them zero).
+  // plane_stride * j + i. Rows start on cache lines (multiples of 8 slots, for a buffer that
+  // starts on one) with slots to spare, so index -1 and ni of every row are zero pads (the
+  // buffer's users keep them zero).
   index_t plane_offset = 0;
   index_t plane_stride = 0;
   NodeMap a, b;    // first and second node of bar (i,j,k)

@@ -248,9 +248,11 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
       static_cast<std::int64_t>(8 * std::max<std::size_t>(line_store_stride_, 1));
   block_lines_ = opt_.block_lines > 0 ? opt_.block_lines
                                       : std::clamp<std::int64_t>((128 << 10) / line_bytes, 8, 64);
+  // fx, fy, fz and a fourth row for the ledger sums, each starting on a cache line.
+  scratch_stride_ = round_up_to_line(lat_.nx() + 1ull);
   thread_scratch_.resize(static_cast<std::size_t>(threads_));
   for (auto& sc : thread_scratch_)
-    sc.resize(4 * (lat_.nx() + 1ull)); // fx, fy, fz and a fourth row for the ledger sums
+    sc.resize(4 * scratch_stride_);
   energy_rows_u_.assign(bar_rows_.size(), 0.0);
   const std::size_t nrows = node_rows_.size();
   row_damping_.assign(nrows, 0.0);
@@ -704,12 +706,11 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
   const double half = 0.5 * opt_.damping * dt;
   const double c1 = (1.0 - half) / (1.0 + half), c2 = dt / (1.0 + half);
   const double alpha = opt_.damping;
-  const index_t max_len = lat_.nx() + 1;
   {
     double* __restrict fx = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
-    double* __restrict fy = fx + max_len;
-    double* __restrict fz = fy + max_len;
-    double* __restrict fw = fz + max_len;
+    double* __restrict fy = fx + scratch_stride_;
+    double* __restrict fz = fy + scratch_stride_;
+    double* __restrict fw = fz + scratch_stride_;
     for (std::size_t r = begin; r < end; ++r) {
       const NodeRow& row = node_rows_[r];
       const index_t n = row.length, n0 = row.first;

@@ -19,6 +19,7 @@
 #include "material/bar_table.hpp"
 #include "solver/stable_step.hpp"
 #include "solver/time_function.hpp"
+#include "util/aligned.hpp"
 
 #include <cstdint>
 #include <functional>
@@ -270,7 +271,8 @@ private:
   std::vector<Line> lines_;
   std::vector<Plane> planes_;
   int threads_ = 1;
-  std::vector<std::vector<double>> thread_scratch_;
+  std::vector<AlignedVector<double>> thread_scratch_; // fx, fy, fz, fw rows of scratch_stride_
+  std::size_t scratch_stride_ = 0;
 
   // Node arrays (structure of arrays).
   // u_n, and u_{n-1} (overwritten by u_{n+1} during a step, then the two are swapped):
@@ -282,7 +284,7 @@ private:
   // Bar arrays: the history, the only per-bar state. The bars' force over current length
   // s = F / l lives only in per-thread plane buffers during a step (see advance_rows).
   std::vector<double> h_;
-  std::vector<std::vector<double>> plane_buffers_; // 3 per thread: two alternating, one top
+  std::vector<AlignedVector<double>> plane_buffers_; // 3 per thread: two alternating, one top
   // 2 per thread: one bar line per plane, packed (the block's carry, the edge a neighbour reads)
   std::vector<std::vector<double>> line_stores_;
   std::size_t line_store_stride_ = 0; // the most bars a line has
