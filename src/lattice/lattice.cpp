@@ -163,7 +163,16 @@ std::vector<NodeRow> node_rows(const Lattice& lat) {
   return rows;
 }
 
+RowNumbering node_numbering(const Lattice& lat) {
+  return {std::int64_t{lat.nx()} + 1, lat.nx(), lat.num_corners()};
+}
+
 int row_links(const Lattice& lat, const NodeRow& row, RowLink out[kMaxRowLinks]) {
+  return row_links(lat, row, out, node_numbering(lat));
+}
+
+int row_links(const Lattice& lat, const NodeRow& row, RowLink out[kMaxRowLinks],
+              const RowNumbering& num) {
   const index_t nx = lat.nx(), ny = lat.ny(), nz = lat.nz(), j = row.j, k = row.k;
   int n = 0;
   auto neg = [](Vec3 v) { return Vec3{-v.x, -v.y, -v.z}; };
@@ -182,41 +191,41 @@ int row_links(const Lattice& lat, const NodeRow& row, RowLink out[kMaxRowLinks])
                 static_cast<int>(kb) - static_cast<int>(k)};
   };
   if (!row.centre) {
-    const std::int64_t c0 = lat.corner(0, j, k);
+    const std::int64_t c0 = num.corner(lat, j, k);
     link(Family::EdgeX, j, k, 0, nx, 0, c0 + 1, true);
     link(Family::EdgeX, j, k, 1, nx + 1, -1, c0 - 1, false);
     if (j < ny)
-      link(Family::EdgeY, j, k, 0, nx + 1, 0, lat.corner(0, j + 1, k), true);
+      link(Family::EdgeY, j, k, 0, nx + 1, 0, num.corner(lat, j + 1, k), true);
     if (j > 0)
-      link(Family::EdgeY, j - 1, k, 0, nx + 1, 0, lat.corner(0, j - 1, k), false);
+      link(Family::EdgeY, j - 1, k, 0, nx + 1, 0, num.corner(lat, j - 1, k), false);
     if (k < nz)
-      link(Family::EdgeZ, j, k, 0, nx + 1, 0, lat.corner(0, j, k + 1), true);
+      link(Family::EdgeZ, j, k, 0, nx + 1, 0, num.corner(lat, j, k + 1), true);
     if (k > 0)
-      link(Family::EdgeZ, j, k - 1, 0, nx + 1, 0, lat.corner(0, j, k - 1), false);
+      link(Family::EdgeZ, j, k - 1, 0, nx + 1, 0, num.corner(lat, j, k - 1), false);
     for (index_t c = 0; c < 8; ++c) {
       const index_t a = c & 1, b = (c >> 1) & 1, cc = (c >> 2) & 1;
       if (j < b || j - b >= ny || k < cc || k - cc >= nz)
         continue;
       // This corner is corner (a, b, cc) of module (i - a, j - b, k - cc).
       link(static_cast<Family>(static_cast<int>(Family::Diag0) + c), j - b, k - cc, a, nx + a,
-           -std::int64_t{a}, std::int64_t{lat.centre(0, j - b, k - cc)} - a, false);
+           -std::int64_t{a}, num.centre(lat, j - b, k - cc) - a, false);
     }
   } else {
-    const std::int64_t m0 = lat.centre(0, j, k);
+    const std::int64_t m0 = num.centre(lat, j, k);
     link(Family::CentreX, j, k, 0, nx - 1, 0, m0 + 1, true);
     link(Family::CentreX, j, k, 1, nx, -1, m0 - 1, false);
     if (j + 1 < ny)
-      link(Family::CentreY, j, k, 0, nx, 0, lat.centre(0, j + 1, k), true);
+      link(Family::CentreY, j, k, 0, nx, 0, num.centre(lat, j + 1, k), true);
     if (j > 0)
-      link(Family::CentreY, j - 1, k, 0, nx, 0, lat.centre(0, j - 1, k), false);
+      link(Family::CentreY, j - 1, k, 0, nx, 0, num.centre(lat, j - 1, k), false);
     if (k + 1 < nz)
-      link(Family::CentreZ, j, k, 0, nx, 0, lat.centre(0, j, k + 1), true);
+      link(Family::CentreZ, j, k, 0, nx, 0, num.centre(lat, j, k + 1), true);
     if (k > 0)
-      link(Family::CentreZ, j, k - 1, 0, nx, 0, lat.centre(0, j, k - 1), false);
+      link(Family::CentreZ, j, k - 1, 0, nx, 0, num.centre(lat, j, k - 1), false);
     for (index_t c = 0; c < 8; ++c) {
       const index_t a = c & 1, b = (c >> 1) & 1, cc = (c >> 2) & 1;
       link(static_cast<Family>(static_cast<int>(Family::Diag0) + c), j, k, 0, nx, 0,
-           std::int64_t{lat.corner(0, j + b, k + cc)} + a, true);
+           num.corner(lat, j + b, k + cc) + a, true);
     }
   }
   return n;

@@ -147,11 +147,27 @@ std::string family_name(Family f);
 
 namespace ldem {
 
+// A numbering of the nodes row by row, i counting along each row: corner row (j, k) starts at
+// corner_row * (j + (ny + 1) k), centre row (j, k) at centre_first + centre_row * (j + ny k).
+// The lattice's own numbering has rows nx + 1 and nx long, centres after the last corner; the
+// step loop's arrays leave room after each row (Simulation's node slots).
+struct RowNumbering {
+  std::int64_t corner_row = 0, centre_row = 0, centre_first = 0;
+  std::int64_t corner(const Lattice& lat, index_t j, index_t k) const {
+    return corner_row * (j + (std::int64_t{lat.ny()} + 1) * k);
+  }
+  std::int64_t centre(const Lattice& lat, index_t j, index_t k) const {
+    return centre_first + centre_row * (j + std::int64_t{lat.ny()} * k);
+  }
+};
+RowNumbering node_numbering(const Lattice& lattice);
+
 // The bars that meet the nodes of one row of nodes (fixed j, k; i running), as up to 14
 // links, each covering a range of i. For node i of the row, link `l` with
-// l.ilo <= i < l.ihi joins bar l.bar_base + i to node l.other_base + i, and the reference
-// vector from the row's node to that other node is l.r0. The order is fixed (family
-// order, first-node role before second-node role), so a sum over links is deterministic.
+// l.ilo <= i < l.ihi joins bar l.bar_base + i to node l.other_base + i (in the numbering
+// row_links is given; the lattice's by default), and the reference vector from the row's node
+// to that other node is l.r0. The order is fixed (family order, first-node role before
+// second-node role), so a sum over links is deterministic.
 struct RowLink {
   std::int64_t bar_base, other_base, plane_base;
   index_t ilo, ihi;
@@ -170,5 +186,7 @@ struct NodeRow {
 // Every row of nodes: corner rows first (k outer, j inner), then centre rows.
 std::vector<NodeRow> node_rows(const Lattice& lattice);
 int row_links(const Lattice& lattice, const NodeRow& row, RowLink out[kMaxRowLinks]);
+int row_links(const Lattice& lattice, const NodeRow& row, RowLink out[kMaxRowLinks],
+              const RowNumbering& numbering);
 
 } // namespace ldem

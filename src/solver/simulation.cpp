@@ -92,18 +92,28 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     throw InputError(
         fmt::format("damping: expected a coefficient >= 0 in 1/s, got {:g}", opt_.damping));
 
-  mass_ = lumped_masses(lat_, table_.spec().rho, table_.rho_module());
-  inv_mass_.resize(nn);
-  for (index_t n = 0; n < nn; ++n)
-    inv_mass_[n] = 1.0 / mass_[n];
+  // The step loop's node arrays: the lattice's rows of nodes, each from a cache line on.
+  slots_ = {static_cast<std::int64_t>(round_up_to_line(lat_.nx() + 1ull)),
+            static_cast<std::int64_t>(round_up_to_line(lat_.nx())), 0};
+  slots_.centre_first = slots_.corner_row * (lat_.ny() + 1ll) * (lat_.nz() + 1ll);
+  slot_count_ =
+      static_cast<std::size_t>(slots_.centre_first + slots_.centre_row * lat_.ny() * lat_.nz());
+  // Masses and held DOF by node number while the step is set up, then in the slots only.
+  const std::vector<double> mass = lumped_masses(lat_, table_.spec().rho, table_.rho_module());
+  slot_mass_.assign(slot_count_, 0.0);
+  slot_inv_mass_.assign(slot_count_, 0.0);
+  for (index_t n = 0; n < nn; ++n) {
+    slot_mass_[slot(n)] = mass[n];
+    slot_inv_mass_[slot(n)] = 1.0 / mass[n];
+  }
 
-  ux_.assign(nn, 0.0);
-  uy_.assign(nn, 0.0);
-  uz_.assign(nn, 0.0);
-  wx_.assign(nn, 0.0);
-  wy_.assign(nn, 0.0);
-  wz_.assign(nn, 0.0);
-  held_.assign(nn, 0);
+  ux_.assign(slot_count_, 0.0);
+  uy_.assign(slot_count_, 0.0);
+  uz_.assign(slot_count_, 0.0);
+  wx_.assign(slot_count_, 0.0);
+  wy_.assign(slot_count_, 0.0);
+  wz_.assign(slot_count_, 0.0);
+  std::vector<DofMask> held(nn, 0);
 
   auto check_set = [&](const NodeSet& set, const char* what) {
     if (set.nodes.empty())
@@ -116,32 +126,45 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   for (const FixedDofs& f : cond_.fixed) {
     check_set(f.set, "fixed DOF");
     for (index_t n : f.set.nodes)
-      held_[n] |= f.dofs;
+      held[n] |= f.dofs;
   }
   for (const ImposedVelocity& v : cond_.velocities) {
     check_set(v.set, "imposed velocity");
     for (index_t n : v.set.nodes)
-      held_[n] |= v.dofs;
+      held[n] |= v.dofs;
     imposed_v_old_.emplace_back(v.set.nodes.size());
   }
   for (const NodalLoad& l : cond_.loads)
     check_set(l.set, "load");
+  auto slots_of = [&](const NodeSet& set) {
+    std::vector<std::size_t> q;
+    for (index_t n : set.nodes)
+      q.push_back(slot(n));
+    return q;
+  };
+  for (const ImposedVelocity& v : cond_.velocities)
+    velocity_slots_.push_back(slots_of(v.set));
+  for (const NodalLoad& l : cond_.loads)
+    load_slots_.push_back(slots_of(l.set));
   if (cond_.plane_strain_axis >= 0) {
     if (cond_.plane_strain_axis > 2)
       throw InputError(
           fmt::format("plane strain axis: expected 0, 1 or 2, got {}", cond_.plane_strain_axis));
     const DofMask bit = static_cast<DofMask>(1u << cond_.plane_strain_axis);
     for (index_t n = 0; n < nn; ++n)
-      held_[n] |= bit;
+      held[n] |= bit;
   }
+  slot_held_.assign(slot_count_, 0);
+  for (index_t n = 0; n < nn; ++n)
+    slot_held_[slot(n)] = held[n];
   if (!opt_.defer_time_step) {
-    stable_ = compute_stable_step(lat_, table_, mass_, held_);
+    stable_ = compute_stable_step(lat_, table_, mass, held);
     dt_ = time_step_by_rule(opt_.step, stable_, table_.ranges().E[1], table_.spec().rho, lat_.L());
   }
   if (!cond_.loads.empty()) {
-    px_.assign(nn, 0.0);
-    py_.assign(nn, 0.0);
-    pz_.assign(nn, 0.0);
+    px_.assign(slot_count_, 0.0);
+    py_.assign(slot_count_, 0.0);
+    pz_.assign(slot_count_, 0.0);
   }
 
   h_.resize(nb);
@@ -175,26 +198,30 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
         // Along a row (i running) an edge bar's area factor changes only at i = 0 and
         // i = ni - 1 (EdgeY, EdgeZ: the x faces); inside it is that of i = 1.
         const double inner = lat_.area_factor(fam, std::min<index_t>(1, fi.ni - 1), j, k);
-        bar_rows_.push_back({f, j, k, inner, lat_.area_factor(fam, 0, j, k)});
+        bar_rows_.push_back({f, j, k, inner, lat_.area_factor(fam, 0, j, k), slot(fi.a.at(0, j, k)),
+                             slot(fi.b.at(0, j, k))});
       }
   // The links of every node row, computed once (they cost more to derive than to read).
   row_links_.resize(kMaxRowLinks * node_rows_.size());
   row_link_count_.resize(node_rows_.size());
   for (std::size_t r = 0; r < node_rows_.size(); ++r)
-    row_link_count_[r] =
-        static_cast<std::uint8_t>(row_links(lat_, node_rows_[r], &row_links_[kMaxRowLinks * r]));
+    row_link_count_[r] = static_cast<std::uint8_t>(
+        row_links(lat_, node_rows_[r], &row_links_[kMaxRowLinks * r], slots_));
   // The range of i each row gathers in one fused pass. A link missing at a row's end reads a
-  // zero pad of the plane buffer (s = 0) and a neighbouring node's finite displacement, so the
-  // fused pass covers the whole row wherever those reads stay inside the node arrays (all
-  // rows but the first and last corner and centre rows); elsewhere only the range where every
-  // link is present, the ends then link by link.
+  // zero pad of the plane buffer (s = 0) and a neighbouring slot's finite displacement, so the
+  // fused pass covers the whole row wherever those reads would stay inside the lattice's nodes
+  // in its own numbering (all rows but the first corner row and the rows that reach the end of
+  // the last centre row). That rule is the lattice's alone, so the slots change no result, and
+  // it keeps the reads inside the slots too (a row's slots start and end no earlier than its
+  // nodes do). Elsewhere only the range where every link is present, the ends link by link.
   row_fused_.resize(node_rows_.size());
   for (std::size_t r = 0; r < node_rows_.size(); ++r) {
-    const RowLink* links = &row_links_[kMaxRowLinks * r];
+    RowLink links[kMaxRowLinks];
+    const int nl = row_links(lat_, node_rows_[r], links);
     const index_t n = node_rows_[r].length;
     bool whole = true;
     index_t ilo = 0, ihi = n;
-    for (int l = 0; l < row_link_count_[r]; ++l) {
+    for (int l = 0; l < nl; ++l) {
       ilo = std::max(ilo, links[l].ilo);
       ihi = std::min(ihi, links[l].ihi);
       whole = whole && links[l].other_base >= 0 &&
@@ -205,7 +232,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   row_held_.assign(node_rows_.size(), 0);
   for (std::size_t r = 0; r < node_rows_.size(); ++r)
     for (index_t i = 0; i < node_rows_[r].length; ++i)
-      row_held_[r] |= held_[node_rows_[r].first + i] != 0;
+      row_held_[r] |= held[node_rows_[r].first + i] != 0;
   mark_damaged_rows();
   // Row ranges of each line (j, k), and the lines of each plane k.
   planes_.assign(lat_.nz() + 1ull, {0, 0});
@@ -267,8 +294,9 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
 void Simulation::set_velocity(const std::function<Vec3(Vec3)>& v_of_X) {
   for (index_t n = 0; n < lat_.num_nodes(); ++n) {
     const Vec3 v = v_of_X(lat_.position(n));
-    set_half_step_velocity(n, {(held_[n] & kDofX) ? 0.0 : v.x, (held_[n] & kDofY) ? 0.0 : v.y,
-                               (held_[n] & kDofZ) ? 0.0 : v.z});
+    const DofMask h = held(n);
+    set_half_step_velocity(
+        n, {(h & kDofX) ? 0.0 : v.x, (h & kDofY) ? 0.0 : v.y, (h & kDofZ) ? 0.0 : v.z});
   }
 }
 
@@ -302,50 +330,68 @@ void Simulation::set_time_step(double dt) {
     throw InputError(fmt::format("time step: expected 0 < dt <= {:.4g} s (the stable limit), "
                                  "got {:g}",
                                  stable_.dt, dt));
-  for (index_t n = 0; n < lat_.num_nodes(); ++n) {
+  for (std::size_t q = 0; q < slot_count_; ++q) {
     // (Before a deferred dt is first set, the nodes are at rest.)
-    const Vec3 v = dt_ > 0.0 ? half_step_velocity(n) : Vec3{0, 0, 0};
-    wx_[n] = ux_[n] - dt * v.x;
-    wy_[n] = uy_[n] - dt * v.y;
-    wz_[n] = uz_[n] - dt * v.z;
+    const double vx = dt_ > 0.0 ? (ux_[q] - wx_[q]) / dt_ : 0.0;
+    const double vy = dt_ > 0.0 ? (uy_[q] - wy_[q]) / dt_ : 0.0;
+    const double vz = dt_ > 0.0 ? (uz_[q] - wz_[q]) / dt_ : 0.0;
+    wx_[q] = ux_[q] - dt * vx;
+    wy_[q] = uy_[q] - dt * vy;
+    wz_[q] = uz_[q] - dt * vz;
   }
   dt_ = dt;
 }
 
 // v_{n-1/2} is (u_n - u_{n-1}) / dt: the state is two displacement fields.
 Vec3 Simulation::half_step_velocity(index_t node) const {
-  return {(ux_[node] - wx_[node]) / dt_, (uy_[node] - wy_[node]) / dt_,
-          (uz_[node] - wz_[node]) / dt_};
+  const std::size_t q = slot(node);
+  return {(ux_[q] - wx_[q]) / dt_, (uy_[q] - wy_[q]) / dt_, (uz_[q] - wz_[q]) / dt_};
 }
 
 void Simulation::set_half_step_velocity(index_t node, Vec3 v) {
-  wx_[node] = ux_[node] - dt_ * v.x;
-  wy_[node] = uy_[node] - dt_ * v.y;
-  wz_[node] = uz_[node] - dt_ * v.z;
+  const std::size_t q = slot(node);
+  wx_[q] = ux_[q] - dt_ * v.x;
+  wy_[q] = uy_[q] - dt_ * v.y;
+  wz_[q] = uz_[q] - dt_ * v.z;
 }
 
 void Simulation::set_displacement(index_t node, Vec3 u) {
   const Vec3 v = half_step_velocity(node);
-  ux_[node] = u.x;
-  uy_[node] = u.y;
-  uz_[node] = u.z;
+  const std::size_t q = slot(node);
+  ux_[q] = u.x;
+  uy_[q] = u.y;
+  uz_[q] = u.z;
   set_half_step_velocity(node, v);
+}
+
+template <class F> void Simulation::for_each_run(index_t first, index_t count, F&& visit) const {
+  const index_t nc = lat_.num_corners(), end = first + count;
+  for (index_t n = first; n < end;) {
+    const index_t row = n < nc ? lat_.nx() + 1 : lat_.nx();
+    const index_t i = n < nc ? n % row : (n - nc) % row;
+    const index_t run = std::min(end - n, row - i);
+    visit(slot(n), n, run);
+    n += run;
+  }
 }
 
 void Simulation::append_displacements(index_t first, index_t count, std::vector<double>& out,
                                       bool previous) const {
-  for (const std::vector<double>* u : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_})
+  for (const AlignedVector<double>* u : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_})
     if ((u == &wx_ || u == &wy_ || u == &wz_) == previous)
-      out.insert(out.end(), u->begin() + first, u->begin() + first + count);
+      for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
+        out.insert(out.end(), u->begin() + q, u->begin() + q + run);
+      });
 }
 
 void Simulation::assign_displacements(index_t first, index_t count, const double* in,
                                       bool previous) {
-  for (std::vector<double>* u : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_})
-    if ((u == &wx_ || u == &wy_ || u == &wz_) == previous) {
-      std::copy(in, in + count, u->begin() + first);
-      in += count;
-    }
+  for (AlignedVector<double>* u : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_})
+    if ((u == &wx_ || u == &wy_ || u == &wz_) == previous)
+      for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
+        std::copy(in, in + run, u->begin() + q);
+        in += run;
+      });
 }
 
 void Simulation::append_histories(index_t first, index_t count, std::vector<double>& out) const {
@@ -487,7 +533,7 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
       const FamilyInfo& fi = lat_.family(row.family);
       const FamilyMaterial& mat = table_.family(row.family);
       const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
-      const index_t a0 = fi.a.at(0, row.j, row.k), c0 = fi.b.at(0, row.j, row.k);
+      const std::size_t a0 = row.a_slot, c0 = row.b_slot;
       const RowView v{ux_.data() + a0,
                       uy_.data() + a0,
                       uz_.data() + a0,
@@ -713,7 +759,9 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
     double* __restrict fw = fz + scratch_stride_;
     for (std::size_t r = begin; r < end; ++r) {
       const NodeRow& row = node_rows_[r];
-      const index_t n = row.length, n0 = row.first;
+      const index_t n = row.length;
+      const auto n0 = static_cast<std::size_t>(row.centre ? slots_.centre(lat_, row.j, row.k)
+                                                          : slots_.corner(lat_, row.j, row.k));
       const double* __restrict ux = ux_.data() + n0;
       const double* __restrict uy = uy_.data() + n0;
       const double* __restrict uz = uz_.data() + n0;
@@ -723,7 +771,7 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
         __builtin_prefetch(wx_.data() + n0 + i, 1);
         __builtin_prefetch(wy_.data() + n0 + i, 1);
         __builtin_prefetch(wz_.data() + n0 + i, 1);
-        __builtin_prefetch(inv_mass_.data() + n0 + i, 0);
+        __builtin_prefetch(slot_inv_mass_.data() + n0 + i, 0);
       }
       const RowLink* links = &row_links_[kMaxRowLinks * r];
       const int nl = row_link_count_[r];
@@ -786,9 +834,9 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
       double* __restrict wx = wx_.data() + n0;
       double* __restrict wy = wy_.data() + n0;
       double* __restrict wz = wz_.data() + n0;
-      const double* __restrict im = inv_mass_.data() + n0;
-      const double* __restrict m = mass_.data() + n0;
-      const DofMask* __restrict held = held_.data() + n0;
+      const double* __restrict im = slot_inv_mass_.data() + n0;
+      const double* __restrict m = slot_mass_.data() + n0;
+      const DofMask* __restrict held = slot_held_.data() + n0;
       const double* __restrict px = Loads ? px_.data() + n0 : nullptr;
       const double* __restrict py = Loads ? py_.data() + n0 : nullptr;
       const double* __restrict pz = Loads ? pz_.data() + n0 : nullptr;
@@ -915,15 +963,16 @@ Vec3 Simulation::node_force(index_t node) const {
   const std::size_t r = lines_[a.j + (lat_.ny() + 1ull) * a.k].node_begin + (a.centre ? 1 : 0);
   const RowLink* links = &row_links_[kMaxRowLinks * r];
   const int nl = row_link_count_[r];
+  const std::size_t q = slot(node);
   Vec3 f;
   for (int l = 0; l < nl; ++l) {
     const RowLink& L = links[l];
     if (a.i < L.ilo || a.i >= L.ihi)
       continue;
     const auto bar = static_cast<index_t>(L.bar_base + a.i);
-    const auto o = static_cast<index_t>(L.other_base + a.i);
-    const double rx = L.r0.x + (ux_[o] - ux_[node]), ry = L.r0.y + (uy_[o] - uy_[node]),
-                 rz = L.r0.z + (uz_[o] - uz_[node]);
+    const auto o = static_cast<std::size_t>(L.other_base + a.i);
+    const double rx = L.r0.x + (ux_[o] - ux_[q]), ry = L.r0.y + (uy_[o] - uy_[q]),
+                 rz = L.r0.z + (uz_[o] - uz_[q]);
     const double len = std::sqrt(rx * rx + ry * ry + rz * rz);
     const BilinearLaw law = table_.law(lat_, bar);
     const double s = law.force((len - law.l0) / law.l0, h_[bar]) / len;
@@ -935,15 +984,16 @@ Vec3 Simulation::node_force(index_t node) const {
 }
 
 void Simulation::apply_loads(double t) {
-  for (const NodalLoad& load : cond_.loads)
-    for (index_t n : load.set.nodes)
-      px_[n] = py_[n] = pz_[n] = 0.0;
-  for (const NodalLoad& load : cond_.loads) {
+  for (const auto& slots : load_slots_)
+    for (std::size_t q : slots)
+      px_[q] = py_[q] = pz_[q] = 0.0;
+  for (std::size_t c = 0; c < cond_.loads.size(); ++c) {
+    const NodalLoad& load = cond_.loads[c];
     const double s = load.scale(t);
-    for (index_t n : load.set.nodes) {
-      px_[n] += s * load.force.x;
-      py_[n] += s * load.force.y;
-      pz_[n] += s * load.force.z;
+    for (std::size_t q : load_slots_[c]) {
+      px_[q] += s * load.force.x;
+      py_[q] += s * load.force.y;
+      pz_[q] += s * load.force.z;
     }
   }
 }
@@ -960,28 +1010,30 @@ void Simulation::apply_velocities(double t, bool report) {
     const double target[3] = {s * iv.velocity.x, s * iv.velocity.y, s * iv.velocity.z};
     for (std::size_t q = 0; q < iv.set.nodes.size(); ++q) {
       const index_t n = iv.set.nodes[q];
+      const std::size_t p = velocity_slots_[c][q];
       const Vec3 f = node_force(n);
-      const double fint[3] = {f.x + (px_.empty() ? 0.0 : px_[n]),
-                              f.y + (py_.empty() ? 0.0 : py_[n]),
-                              f.z + (pz_.empty() ? 0.0 : pz_[n])};
+      const double fint[3] = {f.x + (px_.empty() ? 0.0 : px_[p]),
+                              f.y + (py_.empty() ? 0.0 : py_[p]),
+                              f.z + (pz_.empty() ? 0.0 : pz_[p])};
       const double vold[3] = {imposed_v_old_[c][q].x, imposed_v_old_[c][q].y,
                               imposed_v_old_[c][q].z};
-      double* u[3] = {&ux_[n], &uy_[n], &uz_[n]};
-      double* w[3] = {&wx_[n], &wy_[n], &wz_[n]};
+      double* u[3] = {&ux_[p], &uy_[p], &uz_[p]};
+      double* w[3] = {&wx_[p], &wy_[p], &wz_[p]};
       for (int d = 0; d < 3; ++d) {
         if (!(iv.dofs & (1u << d)))
           continue;
         // What the free update would give, and the reaction that turns it into the target.
-        const double v_free = ((1.0 - half) * vold[d] + dt * fint[d] / mass_[n]) / (1.0 + half);
-        const double R = mass_[n] * (target[d] - v_free) * (1.0 + half) / dt;
+        const double v_free =
+            ((1.0 - half) * vold[d] + dt * fint[d] / slot_mass_[p]) / (1.0 + half);
+        const double R = slot_mass_[p] * (target[d] - v_free) * (1.0 + half) / dt;
         const double vmid = 0.5 * (vold[d] + target[d]);
         // The support's reaction R acts together with any load P on the DOF.
-        const double P = px_.empty() ? 0.0 : (d == 0 ? px_[n] : d == 1 ? py_[n] : pz_[n]);
+        const double P = px_.empty() ? 0.0 : (d == 0 ? px_[p] : d == 1 ? py_[p] : pz_[p]);
         work.add((R + P) * dt * vmid);
-        damping.add(opt_.damping * dt * mass_[n] * vmid * vmid);
+        damping.add(opt_.damping * dt * slot_mass_[p] * vmid * vmid);
         if (report) {
           work_half.add(0.5 * (R + P) * dt * vold[d]);
-          kinetic.add(0.5 * mass_[n] * vold[d] * target[d]);
+          kinetic.add(0.5 * slot_mass_[p] * vold[d] * target[d]);
         }
         *w[d] = *u[d] + dt * target[d];
       }
@@ -1066,19 +1118,14 @@ BarState Simulation::bar_state(index_t bar) const {
   return table_.law(lat_, bar).state(h_[bar]);
 }
 
-namespace {
-double bar_strain(const Lattice& lat, const std::vector<double>& ux, const std::vector<double>& uy,
-                  const std::vector<double>& uz, index_t bar) {
-  const auto [a, b] = lat.bar_nodes(bar);
-  const FamilyInfo& fi = lat.family(lat.bar_address(bar).family);
-  const double dx = fi.d0.x + (ux[b] - ux[a]), dy = fi.d0.y + (uy[b] - uy[a]),
-               dz = fi.d0.z + (uz[b] - uz[a]);
-  return (std::sqrt(dx * dx + dy * dy + dz * dz) - fi.l0) / fi.l0;
-}
-} // namespace
-
 double Simulation::bar_force(index_t bar) const {
-  return table_.law(lat_, bar).force(bar_strain(lat_, ux_, uy_, uz_, bar), h_[bar]);
+  const auto [a, b] = lat_.bar_nodes(bar);
+  const std::size_t qa = slot(a), qb = slot(b);
+  const FamilyInfo& fi = lat_.family(lat_.bar_address(bar).family);
+  const double dx = fi.d0.x + (ux_[qb] - ux_[qa]), dy = fi.d0.y + (uy_[qb] - uy_[qa]),
+               dz = fi.d0.z + (uz_[qb] - uz_[qa]);
+  const double e = (std::sqrt(dx * dx + dy * dy + dz * dz) - fi.l0) / fi.l0;
+  return table_.law(lat_, bar).force(e, h_[bar]);
 }
 
 template <class Rows, class F> void Simulation::for_each_bar_row(Rows&& rows, F&& visit) const {
@@ -1092,7 +1139,7 @@ template <class Rows, class F> void Simulation::for_each_bar_row(Rows&& rows, F&
     const FamilyInfo& fi = lat_.family(row.family);
     const FamilyMaterial& mat = table_.family(row.family);
     const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
-    const index_t a0 = fi.a.at(0, row.j, row.k), c0 = fi.b.at(0, row.j, row.k);
+    const std::size_t a0 = row.a_slot, c0 = row.b_slot;
     for (index_t i = 0; i < fi.ni; ++i) {
       const index_t b = b0 + i;
       const double dx = fi.d0.x + (ux_[c0 + i] - ux_[a0 + i]);
@@ -1104,7 +1151,7 @@ template <class Rows, class F> void Simulation::for_each_bar_row(Rows&& rows, F&
                                   ? BilinearLaw{table_.k_bar()[b] * fi.l0, fi.l0,
                                                 table_.e_p_bar()[b], table_.e_r_bar()[b]}
                                   : BilinearLaw{mat.k * fi.l0 * factor, fi.l0, mat.e_p, mat.e_r};
-      visit(r, b, a0 + i, c0 + i, e, law);
+      visit(r, b, e, law);
     }
   }
 }
@@ -1112,7 +1159,7 @@ template <class Rows, class F> void Simulation::for_each_bar_row(Rows&& rows, F&
 template <class F> void Simulation::visit_intact_row(std::size_t r, F&& visit) const {
   const BarRow& row = bar_rows_[r];
   const FamilyInfo& fi = lat_.family(row.family);
-  const index_t a0 = fi.a.at(0, row.j, row.k), c0 = fi.b.at(0, row.j, row.k);
+  const std::size_t a0 = row.a_slot, c0 = row.b_slot;
   const double* __restrict uax = ux_.data() + a0;
   const double* __restrict uay = uy_.data() + a0;
   const double* __restrict uaz = uz_.data() + a0;
@@ -1171,12 +1218,11 @@ Simulation::BarEnergies Simulation::sum_bar_energies(bool intact_done) const {
     else if (!intact_done)
       u[r] = intact_row_energy(r);
   }
-  for_each_bar_row(
-      [&](std::size_t r) { return row_damaged_[r] || per_bar; },
-      [&](std::size_t r, index_t b, index_t, index_t, double e, const BilinearLaw& law) {
-        u[r] += law.stored_energy(e, h_[b]);
-        d[r] += law.dissipated_energy(h_[b]);
-      });
+  for_each_bar_row([&](std::size_t r) { return row_damaged_[r] || per_bar; },
+                   [&](std::size_t r, index_t b, double e, const BilinearLaw& law) {
+                     u[r] += law.stored_energy(e, h_[b]);
+                     d[r] += law.dissipated_energy(h_[b]);
+                   });
   BarEnergies out;
   for (std::size_t r = 0; r < u.size(); ++r) { // row order: the same for any thread count
     out.elastic += u[r];
@@ -1210,7 +1256,7 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
   });
   const bool per_bar = table_.per_bar();
   for_each_bar_row([&](std::size_t r) { return row_damaged_[r] || per_bar; },
-                   [&](std::size_t, index_t b, index_t, index_t, double e, const BilinearLaw& law) {
+                   [&](std::size_t, index_t b, double e, const BilinearLaw& law) {
                      const double h = h_[b];
                      state[b] = static_cast<std::uint8_t>(law.state(h));
                      // Damage: dissipated energy over what the bar dissipates when broken, Gf A^f.
@@ -1229,9 +1275,10 @@ void Simulation::internal_forces(std::vector<double>& fx, std::vector<double>& f
   fz.assign(nn, 0.0);
   for (index_t bar = 0; bar < lat_.num_bars(); ++bar) {
     const auto [a, b] = lat_.bar_nodes(bar);
+    const std::size_t qa = slot(a), qb = slot(b);
     const FamilyInfo& fi = lat_.family(lat_.bar_address(bar).family);
-    const double dx = fi.d0.x + (ux_[b] - ux_[a]), dy = fi.d0.y + (uy_[b] - uy_[a]),
-                 dz = fi.d0.z + (uz_[b] - uz_[a]);
+    const double dx = fi.d0.x + (ux_[qb] - ux_[qa]), dy = fi.d0.y + (uy_[qb] - uy_[qa]),
+                 dz = fi.d0.z + (uz_[qb] - uz_[qa]);
     const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
     const double F = table_.law(lat_, bar).force((l - fi.l0) / fi.l0, h_[bar]);
     // A bar in tension pulls its first node towards the second.
@@ -1251,17 +1298,36 @@ index_t Simulation::first_bad_node() const {
 
 index_t Simulation::first_node_beyond(double limit) const {
   const index_t nn = lat_.num_nodes();
-  // A quick test of the whole field first (NaN and infinity make the sums non-finite or large).
+  // A quick test of the whole field first (NaN and infinity make the sums non-finite or large;
+  // the slots between rows hold zeros).
   double s = 0.0;
 #pragma omp simd reduction(+ : s)
-  for (index_t n = 0; n < nn; ++n)
-    s += std::abs(ux_[n]) + std::abs(uy_[n]) + std::abs(uz_[n]);
+  for (std::size_t q = 0; q < slot_count_; ++q)
+    s += std::abs(ux_[q]) + std::abs(uy_[q]) + std::abs(uz_[q]);
   if (std::isfinite(s) && s <= limit)
     return nn;
-  for (index_t n = 0; n < nn; ++n)
-    if (!(std::abs(ux_[n]) <= limit && std::abs(uy_[n]) <= limit && std::abs(uz_[n]) <= limit))
+  for (index_t n = 0; n < nn; ++n) {
+    const std::size_t q = slot(n);
+    if (!(std::abs(ux_[q]) <= limit && std::abs(uy_[q]) <= limit && std::abs(uz_[q]) <= limit))
       return n;
+  }
   return nn;
+}
+
+std::vector<double> Simulation::masses() const {
+  std::vector<double> m(lat_.num_nodes());
+  for_each_run(0, lat_.num_nodes(), [&](std::size_t q, index_t n, index_t run) {
+    std::copy(slot_mass_.begin() + q, slot_mass_.begin() + q + run, m.begin() + n);
+  });
+  return m;
+}
+
+std::vector<DofMask> Simulation::held_dofs() const {
+  std::vector<DofMask> h(lat_.num_nodes());
+  for_each_run(0, lat_.num_nodes(), [&](std::size_t q, index_t n, index_t run) {
+    std::copy(slot_held_.begin() + q, slot_held_.begin() + q + run, h.begin() + n);
+  });
+  return h;
 }
 
 std::uint64_t Simulation::broken_count() const {
@@ -1282,10 +1348,15 @@ double Simulation::bytes_per_module() const {
   auto bytes = [](const auto& v) { return static_cast<double>(v.size() * sizeof(v[0])); };
   double total = 0.0;
   for (const auto* v :
-       {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &mass_, &inv_mass_, &px_, &py_, &pz_, &h_})
+       {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_, &slot_mass_, &slot_inv_mass_, &px_, &py_, &pz_})
     total += bytes(*v);
-  total += bytes(held_) + bytes(row_links_) + bytes(row_link_count_) + bytes(row_fused_) +
-           bytes(row_held_) + bytes(row_damaged_) + bytes(node_rows_) + bytes(bar_rows_);
+  total += bytes(h_) + bytes(slot_held_);
+  for (const auto& q : velocity_slots_)
+    total += bytes(q);
+  for (const auto& q : load_slots_)
+    total += bytes(q);
+  total += bytes(row_links_) + bytes(row_link_count_) + bytes(row_fused_) + bytes(row_held_) +
+           bytes(row_damaged_) + bytes(node_rows_) + bytes(bar_rows_);
   for (const auto& b : plane_buffers_)
     total += bytes(b);
   for (const auto& b : line_stores_)

@@ -111,9 +111,9 @@ public:
   double dt() const { return dt_; }
   std::uint64_t step_count() const { return step_; }
   double time() const { return static_cast<double>(step_) * dt_; }
-  double mass(index_t node) const { return mass_[node]; }
+  double mass(index_t node) const { return slot_mass_[slot(node)]; }
   // The DOF of a node that are not free: fixed, imposed velocity, or the plane-strain axis.
-  DofMask held(index_t node) const { return held_[node]; }
+  DofMask held(index_t node) const { return slot_held_[slot(node)]; }
   // The boundary conditions and loads the simulation was built with.
   const Conditions& conditions() const { return cond_; }
 
@@ -124,8 +124,8 @@ public:
   // SolverOptions::defer_time_step).
   void set_time_step(const StableStep& stable, double dt);
   // The masses and held DOF of every node (what the stable step is computed from).
-  const std::vector<double>& masses() const { return mass_; }
-  const std::vector<DofMask>& held_dofs() const { return held_; }
+  std::vector<double> masses() const;
+  std::vector<DofMask> held_dofs() const;
 
   // Initial velocities (before the first step), e.g. a ramp; taken as v_{-1/2}.
   void set_velocity(const std::function<Vec3(Vec3 X)>& v_of_X);
@@ -150,7 +150,10 @@ public:
   // Events since the last call, in (step, bar) order.
   std::vector<Event> take_events();
 
-  Vec3 displacement(index_t node) const { return {ux_[node], uy_[node], uz_[node]}; }
+  Vec3 displacement(index_t node) const {
+    const std::size_t q = slot(node);
+    return {ux_[q], uy_[q], uz_[q]};
+  }
   Vec3 half_step_velocity(index_t node) const;
   void set_displacement(index_t node, Vec3 u);
   // Halo exchange and state transfers of distributed runs: u_n (or, with `previous`, u_{n-1})
@@ -198,7 +201,7 @@ public:
   Vec3 node_force(index_t node) const;
   // The nodal load at the current step's start on a node (zero without loads).
   Vec3 nodal_load(index_t node) const {
-    return px_.empty() ? Vec3{} : Vec3{px_[node], py_[node], pz_[node]};
+    return px_.empty() ? Vec3{} : Vec3{px_[slot(node)], py_[slot(node)], pz_[slot(node)]};
   }
 
   // The first node whose displacement is not finite or beyond 1e3 times the body's size (a
@@ -214,9 +217,21 @@ public:
   double bytes_per_module() const;
 
 private:
+  // A node's place in the step loop's node arrays, which hold each row of nodes from a cache
+  // line on (slots_: the lattice's rows, each padded to whole lines of 8 doubles; the padding
+  // stays zero), so that a row's vectors load and store whole lines.
+  std::size_t slot(index_t node) const {
+    const index_t nc = lat_.num_corners(), nx = lat_.nx();
+    if (node < nc)
+      return static_cast<std::size_t>(slots_.corner_row) * (node / (nx + 1)) + node % (nx + 1);
+    const index_t m = node - nc;
+    return static_cast<std::size_t>(slots_.centre_first + slots_.centre_row * (m / nx)) + m % nx;
+  }
+  // visit(first slot, first node, count) for the runs of nodes [first, first + count) that lie
+  // in one row.
+  template <class F> void for_each_run(index_t first, index_t count, F&& visit) const;
   template <bool Damped, bool Loads, bool Report> void advance_rows();
-  // visit(row, bar, node a, node b, strain, law) for every bar of the rows r with rows(r),
-  // rows in parallel.
+  // visit(row, bar, strain, law) for every bar of the rows r with rows(r), rows in parallel.
   template <class Rows, class F> void for_each_bar_row(Rows&& rows, F&& visit) const;
   // visit(row, first bar, bar count, k = E A / l0, extension(i) = l - l0) for every bar row
   // never strained past e_p, rows in parallel; none when the material varies per bar.
@@ -257,7 +272,8 @@ private:
   struct BarRow {
     int family;
     index_t j, k;
-    double factor, end_factor; // area factors of the row's bars (inner, first/last)
+    double factor, end_factor;  // area factors of the row's bars (inner, first/last)
+    std::size_t a_slot, b_slot; // slots of the first and second nodes of the row's bar i = 0
   };
   std::vector<BarRow> bar_rows_;
   std::vector<std::uint8_t> row_damaged_; // per bar row: some bar has h != e_p
@@ -274,13 +290,17 @@ private:
   std::vector<AlignedVector<double>> thread_scratch_; // fx, fy, fz, fw rows of scratch_stride_
   std::size_t scratch_stride_ = 0;
 
-  // Node arrays (structure of arrays).
+  // Node arrays of the step loop (structure of arrays, indexed by slot):
   // u_n, and u_{n-1} (overwritten by u_{n+1} during a step, then the two are swapped):
   // v_{n-1/2} = (u_n - u_{n-1}) / dt, so no velocity array is streamed.
-  std::vector<double> ux_, uy_, uz_, wx_, wy_, wz_;
-  std::vector<double> mass_, inv_mass_;
-  std::vector<DofMask> held_;        // DOF fixed, imposed or held by plane strain
-  std::vector<double> px_, py_, pz_; // nodal loads at t_n (only with loads)
+  RowNumbering slots_;
+  std::size_t slot_count_ = 0;
+  AlignedVector<double> ux_, uy_, uz_, wx_, wy_, wz_;
+  AlignedVector<double> slot_mass_, slot_inv_mass_;
+  AlignedVector<DofMask> slot_held_;   // DOF fixed, imposed or held by plane strain
+  AlignedVector<double> px_, py_, pz_; // nodal loads at t_n (only with loads)
+  // Slots of the nodes of each imposed velocity and each load.
+  std::vector<std::vector<std::size_t>> velocity_slots_, load_slots_;
   // Bar arrays: the history, the only per-bar state. The bars' force over current length
   // s = F / l lives only in per-thread plane buffers during a step (see advance_rows).
   std::vector<double> h_;
