@@ -229,6 +229,30 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     }
     row_fused_[r] = whole ? std::pair{index_t{0}, n} : std::pair{ilo, std::max(ilo, ihi)};
   }
+  // Rows with imposed-velocity nodes, and where each such node's gathered force is kept.
+  imposed_row_.assign(node_rows_.size(), -1);
+  {
+    std::vector<std::size_t> row_of(nn);
+    for (std::size_t r = 0; r < node_rows_.size(); ++r)
+      for (index_t i = 0; i < node_rows_[r].length; ++i)
+        row_of[node_rows_[r].first + i] = r;
+    std::size_t kept = 0;
+    for (const ImposedVelocity& v : cond_.velocities)
+      for (index_t n : v.set.nodes)
+        if (imposed_row_[row_of[n]] < 0) {
+          imposed_row_[row_of[n]] = static_cast<std::int64_t>(kept);
+          kept += 3 * std::size_t{node_rows_[row_of[n]].length};
+        }
+    imposed_force_.assign(kept, 0.0);
+    for (const ImposedVelocity& v : cond_.velocities) {
+      imposed_force_at_.emplace_back();
+      for (index_t n : v.set.nodes) {
+        const NodeRow& row = node_rows_[row_of[n]];
+        imposed_force_at_.back().push_back(
+            {static_cast<std::size_t>(imposed_row_[row_of[n]]) + (n - row.first), row.length});
+      }
+    }
+  }
   row_held_.assign(node_rows_.size(), 0);
   for (std::size_t r = 0; r < node_rows_.size(); ++r)
     for (index_t i = 0; i < node_rows_[r].length; ++i)
@@ -831,6 +855,13 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
           }
         }
       }
+      // A row with imposed-velocity nodes keeps its gathered forces for apply_velocities.
+      if (const std::int64_t o = imposed_row_[r]; o >= 0) {
+        double* kept = imposed_force_.data() + o;
+        std::copy(fx, fx + n, kept);
+        std::copy(fy, fy + n, kept + n);
+        std::copy(fz, fz + n, kept + 2 * n);
+      }
       double* __restrict wx = wx_.data() + n0;
       double* __restrict wy = wy_.data() + n0;
       double* __restrict wz = wz_.data() + n0;
@@ -1009,9 +1040,10 @@ void Simulation::apply_velocities(double t, bool report) {
     const double s = iv.scale(t + 0.5 * dt);
     const double target[3] = {s * iv.velocity.x, s * iv.velocity.y, s * iv.velocity.z};
     for (std::size_t q = 0; q < iv.set.nodes.size(); ++q) {
-      const index_t n = iv.set.nodes[q];
       const std::size_t p = velocity_slots_[c][q];
-      const Vec3 f = node_force(n);
+      // The node's bar forces at u_n, as the node pass gathered them.
+      const auto [fi, len] = imposed_force_at_[c][q];
+      const Vec3 f{imposed_force_[fi], imposed_force_[fi + len], imposed_force_[fi + 2 * len]};
       const double fint[3] = {f.x + (px_.empty() ? 0.0 : px_[p]),
                               f.y + (py_.empty() ? 0.0 : py_[p]),
                               f.z + (pz_.empty() ? 0.0 : pz_[p])};
@@ -1353,6 +1385,9 @@ double Simulation::bytes_per_module() const {
   total += bytes(h_) + bytes(slot_held_);
   for (const auto& q : velocity_slots_)
     total += bytes(q);
+  for (const auto& q : imposed_force_at_)
+    total += bytes(q);
+  total += bytes(imposed_row_) + bytes(imposed_force_);
   for (const auto& q : load_slots_)
     total += bytes(q);
   total += bytes(row_links_) + bytes(row_link_count_) + bytes(row_fused_) + bytes(row_held_) +

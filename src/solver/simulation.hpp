@@ -301,6 +301,12 @@ private:
   AlignedVector<double> px_, py_, pz_; // nodal loads at t_n (only with loads)
   // Slots of the nodes of each imposed velocity and each load.
   std::vector<std::vector<std::size_t>> velocity_slots_, load_slots_;
+  // The bar forces gathered at the nodes of the rows with imposed-velocity nodes (x, y and z
+  // runs of each such row, from imposed_row_[r], -1 for other rows), and where each imposed
+  // node's lie (its x place and its row's length).
+  std::vector<std::int64_t> imposed_row_;
+  std::vector<double> imposed_force_;
+  std::vector<std::vector<std::pair<std::size_t, index_t>>> imposed_force_at_;
   // Bar arrays: the history, the only per-bar state. The bars' force over current length
   // s = F / l lives only in per-thread plane buffers during a step (see advance_rows).
   std::vector<double> h_;
