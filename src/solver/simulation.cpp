@@ -299,12 +299,14 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
       static_cast<std::int64_t>(8 * std::max<std::size_t>(line_store_stride_, 1));
   block_lines_ = opt_.block_lines > 0 ? opt_.block_lines
                                       : std::clamp<std::int64_t>((128 << 10) / line_bytes, 8, 64);
-  // fx, fy, fz and a fourth row for the ledger sums, each starting on a cache line.
+  // fx, fy, fz, a fourth row for the ledger sums and three for the free-DOF factors, each
+  // starting on a cache line.
   scratch_stride_ = round_up_to_line(lat_.nx() + 1ull);
   thread_scratch_.resize(static_cast<std::size_t>(threads_));
   for (auto& sc : thread_scratch_)
-    sc.resize(4 * scratch_stride_);
+    sc.resize(7 * scratch_stride_);
   energy_rows_u_.assign(bar_rows_.size(), 0.0);
+  law_rows_.reserve(bar_rows_.size());
   const std::size_t nrows = node_rows_.size();
   row_damping_.assign(nrows, 0.0);
   row_load_mid_.assign(nrows, 0.0);
@@ -714,7 +716,8 @@ struct IntegrationConstants {
 // __restrict parameter: GCC then vectorises the loop.
 template <bool Damped, bool Loads, bool Report, bool Held>
 inline void
-integrate_row(index_t n, const IntegrationConstants& c, const DofMask* __restrict held,
+integrate_row(index_t n, const IntegrationConstants& c, const double* __restrict free_x,
+              const double* __restrict free_y, const double* __restrict free_z,
               const double* __restrict im, const double* __restrict m, double* __restrict fx,
               double* __restrict fy, double* __restrict fz, double* __restrict fw,
               const double* __restrict px, const double* __restrict py, const double* __restrict pz,
@@ -727,11 +730,10 @@ integrate_row(index_t n, const IntegrationConstants& c, const DofMask* __restric
   // the sums go to the scratch rows (fx.. are free once read) and are added afterwards.
 #pragma omp simd
   for (index_t i = 0; i < n; ++i) {
-    // A row without held DOF does not read the mask: mixing its bytes with doubles would
-    // keep GCC from vectorising the loop.
-    const double kx = Held && (held[i] & kDofX) ? 0.0 : 1.0;
-    const double ky = Held && (held[i] & kDofY) ? 0.0 : 1.0;
-    const double kz = Held && (held[i] & kDofZ) ? 0.0 : 1.0;
+    // 1 on a free DOF, 0 on a held one; a row without held DOF reads no factors.
+    const double kx = Held ? free_x[i] : 1.0;
+    const double ky = Held ? free_y[i] : 1.0;
+    const double kz = Held ? free_z[i] : 1.0;
     const double gx = Loads ? fx[i] + px[i] : fx[i];
     const double gy = Loads ? fy[i] + py[i] : fy[i];
     const double gz = Loads ? fz[i] + pz[i] : fz[i];
@@ -757,14 +759,20 @@ integrate_row(index_t n, const IntegrationConstants& c, const DofMask* __restric
           Report && Loads ? 0.5 * dt * (kx * px[i] * ox + ky * py[i] * oy + kz * pz[i] * oz) : 0.0;
     }
   }
+  // Each sum in node order, and only those that are not zero by the template's terms.
   damping = load_mid = load_half = kinetic = 0.0;
-  if constexpr (sums)
-    for (index_t i = 0; i < n; ++i) {
+  if constexpr (Damped)
+    for (index_t i = 0; i < n; ++i)
       damping += fx[i];
+  if constexpr (Loads)
+    for (index_t i = 0; i < n; ++i)
       load_mid += fy[i];
+  if constexpr (Report)
+    for (index_t i = 0; i < n; ++i)
       kinetic += fz[i];
+  if constexpr (Report && Loads)
+    for (index_t i = 0; i < n; ++i)
       load_half += fw[i];
-    }
 }
 
 } // namespace
@@ -781,6 +789,11 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
     double* __restrict fy = fx + scratch_stride_;
     double* __restrict fz = fy + scratch_stride_;
     double* __restrict fw = fz + scratch_stride_;
+    // The held DOF of a row as factors 1 (free) and 0 (held): the node update then reads only
+    // doubles, which GCC vectorises (with the mask's bytes in the loop it does not).
+    double* __restrict free_x = fw + scratch_stride_;
+    double* __restrict free_y = free_x + scratch_stride_;
+    double* __restrict free_z = free_y + scratch_stride_;
     for (std::size_t r = begin; r < end; ++r) {
       const NodeRow& row = node_rows_[r];
       const index_t n = row.length;
@@ -873,14 +886,19 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
       const double* __restrict pz = Loads ? pz_.data() + n0 : nullptr;
       double damping = 0.0, load_mid = 0.0, load_half = 0.0, kinetic = 0.0;
       const IntegrationConstants ic{dt, c1, c2, alpha};
-      if (row_held_[r])
-        integrate_row<Damped, Loads, Report, true>(n, ic, held, im, m, fx, fy, fz, fw, px, py, pz,
-                                                   ux, uy, uz, wx, wy, wz, damping, load_mid,
-                                                   load_half, kinetic);
-      else
-        integrate_row<Damped, Loads, Report, false>(n, ic, held, im, m, fx, fy, fz, fw, px, py, pz,
-                                                    ux, uy, uz, wx, wy, wz, damping, load_mid,
-                                                    load_half, kinetic);
+      if (row_held_[r]) {
+        for (index_t i = 0; i < n; ++i) {
+          free_x[i] = held[i] & kDofX ? 0.0 : 1.0;
+          free_y[i] = held[i] & kDofY ? 0.0 : 1.0;
+          free_z[i] = held[i] & kDofZ ? 0.0 : 1.0;
+        }
+        integrate_row<Damped, Loads, Report, true>(n, ic, free_x, free_y, free_z, im, m, fx, fy, fz,
+                                                   fw, px, py, pz, ux, uy, uz, wx, wy, wz, damping,
+                                                   load_mid, load_half, kinetic);
+      } else
+        integrate_row<Damped, Loads, Report, false>(n, ic, nullptr, nullptr, nullptr, im, m, fx, fy,
+                                                    fz, fw, px, py, pz, ux, uy, uz, wx, wy, wz,
+                                                    damping, load_mid, load_half, kinetic);
       row_damping_[r] = damping;
       row_load_mid_[r] = load_mid;
       row_load_half_[r] = load_half;
@@ -1236,6 +1254,41 @@ double Simulation::intact_row_energy(std::size_t r) const {
   return u;
 }
 
+template <bool PerBar>
+index_t Simulation::law_row_energies(std::size_t r, double* __restrict eu,
+                                     double* __restrict ed) const {
+  const BarRow& row = bar_rows_[r];
+  const FamilyInfo& fi = lat_.family(row.family);
+  const FamilyMaterial& mat = table_.family(row.family);
+  const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k), n = fi.ni;
+  const double* __restrict uax = ux_.data() + row.a_slot;
+  const double* __restrict uay = uy_.data() + row.a_slot;
+  const double* __restrict uaz = uz_.data() + row.a_slot;
+  const double* __restrict ubx = ux_.data() + row.b_slot;
+  const double* __restrict uby = uy_.data() + row.b_slot;
+  const double* __restrict ubz = uz_.data() + row.b_slot;
+  const double* __restrict h = h_.data() + b0;
+  const double* __restrict kb = PerBar ? table_.k_bar().data() + b0 : nullptr;
+  const double* __restrict epb = PerBar ? table_.e_p_bar().data() + b0 : nullptr;
+  const double* __restrict erb = PerBar ? table_.e_r_bar().data() + b0 : nullptr;
+  // Scalars in locals (the loop vectorises only so); EA = (k l0) factor, as BarTable's law.
+  const double l0 = fi.l0, kl0 = mat.k * fi.l0, ep = mat.e_p, er = mat.e_r;
+  const double inner = row.factor, end = row.end_factor;
+  const double d0x = fi.d0.x, d0y = fi.d0.y, d0z = fi.d0.z;
+  for (index_t i = 0; i < n; ++i) {
+    const double dx = d0x + (ubx[i] - uax[i]);
+    const double dy = d0y + (uby[i] - uay[i]);
+    const double dz = d0z + (ubz[i] - uaz[i]);
+    const double e = (std::sqrt(dx * dx + dy * dy + dz * dz) - l0) / l0;
+    const double factor = (i == 0 || i + 1 == n) ? end : inner;
+    const BilinearLaw law{PerBar ? kb[i] * l0 : kl0 * factor, l0, PerBar ? epb[i] : ep,
+                          PerBar ? erb[i] : er};
+    eu[i] = law.stored_energy(e, h[i]);
+    ed[i] = law.dissipated_energy(h[i]);
+  }
+  return n;
+}
+
 Simulation::BarEnergies Simulation::sum_bar_energies(bool intact_done) const {
   std::vector<double>& u = energy_rows_u_;
   std::vector<double>& d = energy_rows_d_;
@@ -1250,11 +1303,28 @@ Simulation::BarEnergies Simulation::sum_bar_energies(bool intact_done) const {
     else if (!intact_done)
       u[r] = intact_row_energy(r);
   }
-  for_each_bar_row([&](std::size_t r) { return row_damaged_[r] || per_bar; },
-                   [&](std::size_t r, index_t b, double e, const BilinearLaw& law) {
-                     u[r] += law.stored_energy(e, h_[b]);
-                     d[r] += law.dissipated_energy(h_[b]);
-                   });
+  // The rows that go through the bar law, shared out evenly among the threads (a crack's
+  // damaged rows lie together).
+  law_rows_.clear();
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r)
+    if (row_damaged_[r] || per_bar)
+      law_rows_.push_back(r);
+  const auto nlaw = static_cast<std::ptrdiff_t>(law_rows_.size());
+#pragma omp parallel for schedule(static) if (nlaw * lat_.nx() > kParallelMinItems)
+  for (std::ptrdiff_t q = 0; q < nlaw; ++q) {
+    const std::size_t r = law_rows_[static_cast<std::size_t>(q)];
+    double* eu = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
+    double* ed = eu + scratch_stride_;
+    const index_t n =
+        per_bar ? law_row_energies<true>(r, eu, ed) : law_row_energies<false>(r, eu, ed);
+    double su = 0.0, sd = 0.0;
+    for (index_t i = 0; i < n; ++i) { // in bar order, as a bar-by-bar sum
+      su += eu[i];
+      sd += ed[i];
+    }
+    u[r] = su;
+    d[r] = sd;
+  }
   BarEnergies out;
   for (std::size_t r = 0; r < u.size(); ++r) { // row order: the same for any thread count
     out.elastic += u[r];

@@ -244,6 +244,10 @@ private:
   // Elastic and dissipated energy of all bars; `intact_done`: the bar pass has already put the
   // intact rows' energies in energy_rows_u_.
   BarEnergies sum_bar_energies(bool intact_done) const;
+  // The elastic and dissipated energy of each bar of row r, by the bar law, into eu and ed (as
+  // many as the row has bars, returned); PerBar: the material varies per bar.
+  template <bool PerBar>
+  index_t law_row_energies(std::size_t r, double* __restrict eu, double* __restrict ed) const;
   // visit(first bar, bar count, k = E A / l0, extension(i) = l - l0) for intact bar row r.
   template <class F> void visit_intact_row(std::size_t r, F&& visit) const;
   double intact_row_energy(std::size_t r) const;
@@ -287,7 +291,9 @@ private:
   std::vector<Line> lines_;
   std::vector<Plane> planes_;
   int threads_ = 1;
-  std::vector<AlignedVector<double>> thread_scratch_; // fx, fy, fz, fw rows of scratch_stride_
+  // fx, fy, fz, fw and three free-DOF rows of scratch_stride_ (the report's bar energies use
+  // the first two too)
+  mutable std::vector<AlignedVector<double>> thread_scratch_;
   std::size_t scratch_stride_ = 0;
 
   // Node arrays of the step loop (structure of arrays, indexed by slot):
@@ -328,6 +334,7 @@ private:
   ExactSum report_work_, report_damping2_; // of the last report (see report_work)
 
   mutable std::vector<double> energy_rows_u_, energy_rows_d_; // per-row sums (bar_energies)
+  mutable std::vector<std::size_t> law_rows_; // the rows sum_bar_energies takes through the law
 
   Ledger ledger_;
   EnergyReport report_{};
