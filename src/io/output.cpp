@@ -192,18 +192,20 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
 }
 
 void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
-  const auto nn = static_cast<std::ptrdiff_t>(nn_);
+  constexpr index_t chunk = 4096; // nodes per task
+  const auto chunks = static_cast<std::ptrdiff_t>((nn_ + chunk - 1) / chunk);
 #pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t n = 0; n < nn; ++n) {
-    const auto i = static_cast<index_t>(n);
-    const Vec3 u = sim.displacement(i), v = sim.half_step_velocity(i);
-    const std::size_t o = 3 * static_cast<std::size_t>(n);
-    disp_[o] = static_cast<float>(u.x);
-    disp_[o + 1] = static_cast<float>(u.y);
-    disp_[o + 2] = static_cast<float>(u.z);
-    vel_[o] = static_cast<float>(v.x);
-    vel_[o + 1] = static_cast<float>(v.y);
-    vel_[o + 2] = static_cast<float>(v.z);
+  for (std::ptrdiff_t c = 0; c < chunks; ++c) {
+    const auto first = static_cast<index_t>(c) * chunk;
+    sim.for_each_node_state(first, std::min(chunk, nn_ - first), [&](index_t n, Vec3 u, Vec3 v) {
+      const std::size_t o = 3 * std::size_t{n};
+      disp_[o] = static_cast<float>(u.x);
+      disp_[o + 1] = static_cast<float>(u.y);
+      disp_[o + 2] = static_cast<float>(u.z);
+      vel_[o] = static_cast<float>(v.x);
+      vel_[o + 1] = static_cast<float>(v.y);
+      vel_[o + 2] = static_cast<float>(v.z);
+    });
   }
   sim.bar_snapshot(state_, damage_, force_);
   const auto nb = static_cast<std::ptrdiff_t>(nb_);

@@ -390,17 +390,6 @@ void Simulation::set_displacement(index_t node, Vec3 u) {
   set_half_step_velocity(node, v);
 }
 
-template <class F> void Simulation::for_each_run(index_t first, index_t count, F&& visit) const {
-  const index_t nc = lat_.num_corners(), end = first + count;
-  for (index_t n = first; n < end;) {
-    const index_t row = n < nc ? lat_.nx() + 1 : lat_.nx();
-    const index_t i = n < nc ? n % row : (n - nc) % row;
-    const index_t run = std::min(end - n, row - i);
-    visit(slot(n), n, run);
-    n += run;
-  }
-}
-
 void Simulation::append_displacements(index_t first, index_t count, std::vector<double>& out,
                                       bool previous) const {
   for (const AlignedVector<double>* u : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_})
@@ -1080,7 +1069,8 @@ void Simulation::apply_velocities(double t, bool report) {
         // The support's reaction R acts together with any load P on the DOF.
         const double P = px_.empty() ? 0.0 : (d == 0 ? px_[p] : d == 1 ? py_[p] : pz_[p]);
         work.add((R + P) * dt * vmid);
-        damping.add(opt_.damping * dt * slot_mass_[p] * vmid * vmid);
+        if (opt_.damping > 0.0)
+          damping.add(opt_.damping * dt * slot_mass_[p] * vmid * vmid);
         if (report) {
           work_half.add(0.5 * (R + P) * dt * vold[d]);
           kinetic.add(0.5 * slot_mass_[p] * vold[d] * target[d]);
@@ -1121,17 +1111,18 @@ void Simulation::step(bool report) {
   apply_velocities(t, energies);
 
   // The step's work and damping, row by row and DOF by DOF, added exactly (Ledger).
+  // (Without damping or loads the rows' terms are zeros, which add nothing.)
   ExactSum damping = cond_damping_, load_mid = cond_work_;
-  for (std::size_t r = 0; r < node_rows_.size(); ++r) {
+  for (std::size_t r = 0; damped && r < node_rows_.size(); ++r)
     damping.add(row_damping_[r]);
+  for (std::size_t r = 0; loads && r < node_rows_.size(); ++r)
     load_mid.add(row_load_mid_[r]);
-  }
   if (energies) {
     ExactSum kinetic = cond_kinetic_, work_half = cond_work_half_;
-    for (std::size_t r = 0; r < node_rows_.size(); ++r) {
+    for (std::size_t r = 0; r < node_rows_.size(); ++r)
       kinetic.add(row_kinetic_[r]);
+    for (std::size_t r = 0; loads && r < node_rows_.size(); ++r)
       work_half.add(row_load_half_[r]);
-    }
     // Damping: the part of this step's dissipation a dt v_n . m v_n that lies before t_n,
     // taken as half of it (the exact split a m v_n . dt v_{n-1/2} / 2 differs by O(dt^2)).
     const BarEnergies bars = sum_bar_energies(true); // intact rows done in the bar pass

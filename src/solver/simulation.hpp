@@ -21,6 +21,7 @@
 #include "solver/time_function.hpp"
 #include "util/aligned.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -155,6 +156,17 @@ public:
     return {ux_[q], uy_[q], uz_[q]};
   }
   Vec3 half_step_velocity(index_t node) const;
+  // visit(node, u_n, v_{n-1/2}) for the nodes [first, first + count) in order: what
+  // displacement() and half_step_velocity() give, a row at a time.
+  template <class F> void for_each_node_state(index_t first, index_t count, F&& visit) const {
+    for_each_run(first, count, [&](std::size_t q0, index_t n0, index_t run) {
+      for (index_t i = 0; i < run; ++i) {
+        const std::size_t q = q0 + i;
+        visit(n0 + i, Vec3{ux_[q], uy_[q], uz_[q]},
+              Vec3{(ux_[q] - wx_[q]) / dt_, (uy_[q] - wy_[q]) / dt_, (uz_[q] - wz_[q]) / dt_});
+      }
+    });
+  }
   void set_displacement(index_t node, Vec3 u);
   // Halo exchange and state transfers of distributed runs: u_n (or, with `previous`, u_{n-1})
   // of nodes [first, first + count) appended to `out` as an x block, a y block and a z block;
@@ -229,7 +241,16 @@ private:
   }
   // visit(first slot, first node, count) for the runs of nodes [first, first + count) that lie
   // in one row.
-  template <class F> void for_each_run(index_t first, index_t count, F&& visit) const;
+  template <class F> void for_each_run(index_t first, index_t count, F&& visit) const {
+    const index_t nc = lat_.num_corners(), end = first + count;
+    for (index_t n = first; n < end;) {
+      const index_t row = n < nc ? lat_.nx() + 1 : lat_.nx();
+      const index_t i = n < nc ? n % row : (n - nc) % row;
+      const index_t run = std::min(end - n, row - i);
+      visit(slot(n), n, run);
+      n += run;
+    }
+  }
   template <bool Damped, bool Loads, bool Report> void advance_rows();
   // visit(row, bar, strain, law) for every bar of the rows r with rows(r), rows in parallel.
   template <class Rows, class F> void for_each_bar_row(Rows&& rows, F&& visit) const;
