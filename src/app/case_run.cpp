@@ -675,12 +675,26 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       row += fmt::format(",{:.9g}", v);
     probes->write(row + "\n");
   };
+  // The rows written so far and the list of snapshots reach the files at most once a second
+  // (flush_live), at every checkpoint and at the end: a crash loses nothing that `ldem resume`
+  // does not write again from the last checkpoint, and a run's files can be watched as it goes.
+  // (A flush per report, and lattice.pvd renamed over itself after each snapshot, which makes
+  // the file system write it out at once, cost a tenth of a short run.)
+  bool pvd_pending = false;
+  auto last_flush = std::chrono::steady_clock::now();
+  auto flush_live = [&]() {
+    energy->flush();
+    events->flush();
+    probes->flush();
+    if (pvd_pending)
+      write_file(dir + "lattice.pvd", lattice_pvd(st.snapshots));
+    pvd_pending = false;
+    last_flush = std::chrono::steady_clock::now();
+  };
   auto save_checkpoint = [&](std::uint64_t next) {
     std::string meta;
     if (writes) {
-      energy->flush();
-      events->flush();
-      probes->flush();
+      flush_live();
       st.next = next;
       st.lengths[0] = energy->size();
       st.lengths[1] = events->size();
@@ -767,7 +781,7 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       body.write_snapshot(dir + name);
       if (writes) {
         st.snapshots.emplace_back(body.time(), name);
-        write_file(dir + "lattice.pvd", lattice_pvd(st.snapshots));
+        pvd_pending = true;
       }
     }
     body.step(report);
@@ -781,14 +795,15 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
           n > 0)
         st.max_balance = std::max(st.max_balance, r.balance_error);
-      energy->flush();
-      events->flush();
-      probes->flush();
+      if (std::chrono::steady_clock::now() - last_flush > std::chrono::seconds(1))
+        flush_live();
       progress->update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error, n == steps);
     }
   }
   if (signal)
     save_checkpoint(n);
+  if (writes)
+    flush_live(); // the last rows and snapshots, within the loop's time
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto [softened, broken] = body.softening_and_broken(); // the final state
   if (!writes) // the first process reports; the others end with its exit code
