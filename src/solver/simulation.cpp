@@ -1169,34 +1169,6 @@ double Simulation::bar_force(index_t bar) const {
   return table_.law(lat_, bar).force(e, h_[bar]);
 }
 
-template <class Rows, class F> void Simulation::for_each_bar_row(Rows&& rows, F&& visit) const {
-  // Row by row in the step's order: each bar's constants without a per-bar lookup.
-  const bool per_bar = table_.per_bar();
-#pragma omp parallel for schedule(static) if (lat_.num_bars() > kParallelMinItems)
-  for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
-    if (!rows(r))
-      continue;
-    const BarRow& row = bar_rows_[r];
-    const FamilyInfo& fi = lat_.family(row.family);
-    const FamilyMaterial& mat = table_.family(row.family);
-    const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
-    const std::size_t a0 = row.a_slot, c0 = row.b_slot;
-    for (index_t i = 0; i < fi.ni; ++i) {
-      const index_t b = b0 + i;
-      const double dx = fi.d0.x + (ux_[c0 + i] - ux_[a0 + i]);
-      const double dy = fi.d0.y + (uy_[c0 + i] - uy_[a0 + i]);
-      const double dz = fi.d0.z + (uz_[c0 + i] - uz_[a0 + i]);
-      const double e = (std::sqrt(dx * dx + dy * dy + dz * dz) - fi.l0) / fi.l0;
-      const double factor = (i == 0 || i + 1 == fi.ni) ? row.end_factor : row.factor;
-      const BilinearLaw law = per_bar
-                                  ? BilinearLaw{table_.k_bar()[b] * fi.l0, fi.l0,
-                                                table_.e_p_bar()[b], table_.e_r_bar()[b]}
-                                  : BilinearLaw{mat.k * fi.l0 * factor, fi.l0, mat.e_p, mat.e_r};
-      visit(r, b, e, law);
-    }
-  }
-}
-
 template <class F> void Simulation::visit_intact_row(std::size_t r, F&& visit) const {
   const BarRow& row = bar_rows_[r];
   const FamilyInfo& fi = lat_.family(row.family);
@@ -1245,9 +1217,7 @@ double Simulation::intact_row_energy(std::size_t r) const {
   return u;
 }
 
-template <bool PerBar>
-index_t Simulation::law_row_energies(std::size_t r, double* __restrict eu,
-                                     double* __restrict ed) const {
+template <bool PerBar, class F> index_t Simulation::visit_law_row(std::size_t r, F&& lane) const {
   const BarRow& row = bar_rows_[r];
   const FamilyInfo& fi = lat_.family(row.family);
   const FamilyMaterial& mat = table_.family(row.family);
@@ -1274,8 +1244,7 @@ index_t Simulation::law_row_energies(std::size_t r, double* __restrict eu,
     const double factor = (i == 0 || i + 1 == n) ? end : inner;
     const BilinearLaw law{PerBar ? kb[i] * l0 : kl0 * factor, l0, PerBar ? epb[i] : ep,
                           PerBar ? erb[i] : er};
-    eu[i] = law.stored_energy(e, h[i]);
-    ed[i] = law.dissipated_energy(h[i]);
+    lane(i, e, law, h[i]);
   }
   return n;
 }
@@ -1306,8 +1275,12 @@ Simulation::BarEnergies Simulation::sum_bar_energies(bool intact_done) const {
     const std::size_t r = law_rows_[static_cast<std::size_t>(q)];
     double* eu = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
     double* ed = eu + scratch_stride_;
+    const auto energies = [eu, ed](index_t i, double e, const BilinearLaw& law, double h) {
+      eu[i] = law.stored_energy(e, h);
+      ed[i] = law.dissipated_energy(h);
+    };
     const index_t n =
-        per_bar ? law_row_energies<true>(r, eu, ed) : law_row_energies<false>(r, eu, ed);
+        per_bar ? visit_law_row<true>(r, energies) : visit_law_row<false>(r, energies);
     double su = 0.0, sd = 0.0;
     for (index_t i = 0; i < n; ++i) { // in bar order, as a bar-by-bar sum
       su += eu[i];
@@ -1340,24 +1313,43 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
   // Intact rows of a uniform material: F = k (l - l0) times the area factor, no damage.
   for_each_intact_row([&](std::size_t r, index_t b0, index_t n, double k, auto&& extension) {
     const double inner = k * bar_rows_[r].factor, end = k * bar_rows_[r].end_factor;
+    // (The forces in a loop of doubles alone, which GCC vectorises; the bytes apart.)
+    double* __restrict f = force.data() + b0;
 #pragma omp simd
-    for (index_t i = 0; i < n; ++i) {
-      force[b0 + i] = (i == 0 || i + 1 == n ? end : inner) * extension(i);
-      damage[b0 + i] = 0.0;
-      state[b0 + i] = 0;
-    }
+    for (index_t i = 0; i < n; ++i)
+      f[i] = (i == 0 || i + 1 == n ? end : inner) * extension(i);
+    std::fill_n(damage.begin() + b0, n, 0.0);
+    std::fill_n(state.begin() + b0, n, std::uint8_t{0});
   });
+  // The other rows through the bar law: force and damage (dissipated energy over what the bar
+  // dissipates when broken, Gf A^f) in a loop of doubles, the states apart.
   const bool per_bar = table_.per_bar();
-  for_each_bar_row([&](std::size_t r) { return row_damaged_[r] || per_bar; },
-                   [&](std::size_t, index_t b, double e, const BilinearLaw& law) {
-                     const double h = h_[b];
-                     state[b] = static_cast<std::uint8_t>(law.state(h));
-                     // Damage: dissipated energy over what the bar dissipates when broken, Gf A^f.
-                     damage[b] = std::isinf(h) ? 1.0
-                                               : law.dissipated_energy(h) /
-                                                     (0.5 * law.EA * law.e_p * law.e_r * law.l0);
-                     force[b] = law.force(e, h);
-                   });
+  law_rows_.clear();
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r)
+    if (row_damaged_[r] || per_bar)
+      law_rows_.push_back(r);
+  const auto nlaw = static_cast<std::ptrdiff_t>(law_rows_.size());
+#pragma omp parallel for schedule(static) if (nlaw * lat_.nx() > kParallelMinItems)
+  for (std::ptrdiff_t q = 0; q < nlaw; ++q) {
+    const std::size_t r = law_rows_[static_cast<std::size_t>(q)];
+    const BarRow& row = bar_rows_[r];
+    const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
+    double* f = force.data() + b0;
+    double* d = damage.data() + b0;
+    const auto values = [f, d](index_t i, double e, const BilinearLaw& law, double h) {
+      d[i] = std::isinf(h) ? 1.0
+                           : law.dissipated_energy(h) / (0.5 * law.EA * law.e_p * law.e_r * law.l0);
+      f[i] = law.force(e, h);
+    };
+    const index_t n = per_bar ? visit_law_row<true>(r, values) : visit_law_row<false>(r, values);
+    const FamilyMaterial& mat = table_.family(row.family);
+    for (index_t i = 0; i < n; ++i) {
+      const index_t b = b0 + i;
+      const BilinearLaw law{0.0, 0.0, per_bar ? table_.e_p_bar()[b] : mat.e_p,
+                            per_bar ? table_.e_r_bar()[b] : mat.e_r};
+      state[b] = static_cast<std::uint8_t>(law.state(h_[b]));
+    }
+  }
 }
 
 void Simulation::internal_forces(std::vector<double>& fx, std::vector<double>& fy,

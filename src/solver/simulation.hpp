@@ -252,8 +252,6 @@ private:
     }
   }
   template <bool Damped, bool Loads, bool Report> void advance_rows();
-  // visit(row, bar, strain, law) for every bar of the rows r with rows(r), rows in parallel.
-  template <class Rows, class F> void for_each_bar_row(Rows&& rows, F&& visit) const;
   // visit(row, first bar, bar count, k = E A / l0, extension(i) = l - l0) for every bar row
   // never strained past e_p, rows in parallel; none when the material varies per bar.
   template <class F> void for_each_intact_row(F&& visit) const;
@@ -265,10 +263,9 @@ private:
   // Elastic and dissipated energy of all bars; `intact_done`: the bar pass has already put the
   // intact rows' energies in energy_rows_u_.
   BarEnergies sum_bar_energies(bool intact_done) const;
-  // The elastic and dissipated energy of each bar of row r, by the bar law, into eu and ed (as
-  // many as the row has bars, returned); PerBar: the material varies per bar.
-  template <bool PerBar>
-  index_t law_row_energies(std::size_t r, double* __restrict eu, double* __restrict ed) const;
+  // lane(i, strain, law, history) for each bar i of row r by the bar law, in a loop GCC can
+  // vectorise; returns the row's bar count. PerBar: the material varies per bar.
+  template <bool PerBar, class F> index_t visit_law_row(std::size_t r, F&& lane) const;
   // visit(first bar, bar count, k = E A / l0, extension(i) = l - l0) for intact bar row r.
   template <class F> void visit_intact_row(std::size_t r, F&& visit) const;
   double intact_row_energy(std::size_t r) const;
@@ -355,7 +352,7 @@ private:
   ExactSum report_work_, report_damping2_; // of the last report (see report_work)
 
   mutable std::vector<double> energy_rows_u_, energy_rows_d_; // per-row sums (bar_energies)
-  mutable std::vector<std::size_t> law_rows_; // the rows sum_bar_energies takes through the law
+  mutable std::vector<std::size_t> law_rows_;                 // the rows taken through the bar law
 
   Ledger ledger_;
   EnergyReport report_{};
