@@ -1217,6 +1217,19 @@ double Simulation::intact_row_energy(std::size_t r) const {
   return u;
 }
 
+template <class F> void Simulation::for_each_law_row(F&& visit) const {
+  // The rows that go through the bar law (damaged, or every row of a material that varies per
+  // bar), shared out evenly among the threads: a crack's damaged rows lie together.
+  law_rows_.clear();
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r)
+    if (row_damaged_[r] || table_.per_bar())
+      law_rows_.push_back(r);
+  const auto nlaw = static_cast<std::ptrdiff_t>(law_rows_.size());
+#pragma omp parallel for schedule(static) if (nlaw * lat_.nx() > kParallelMinItems)
+  for (std::ptrdiff_t q = 0; q < nlaw; ++q)
+    visit(law_rows_[static_cast<std::size_t>(q)]);
+}
+
 template <bool PerBar, class F> index_t Simulation::visit_law_row(std::size_t r, F&& lane) const {
   const BarRow& row = bar_rows_[r];
   const FamilyInfo& fi = lat_.family(row.family);
@@ -1263,16 +1276,7 @@ Simulation::BarEnergies Simulation::sum_bar_energies(bool intact_done) const {
     else if (!intact_done)
       u[r] = intact_row_energy(r);
   }
-  // The rows that go through the bar law, shared out evenly among the threads (a crack's
-  // damaged rows lie together).
-  law_rows_.clear();
-  for (std::size_t r = 0; r < bar_rows_.size(); ++r)
-    if (row_damaged_[r] || per_bar)
-      law_rows_.push_back(r);
-  const auto nlaw = static_cast<std::ptrdiff_t>(law_rows_.size());
-#pragma omp parallel for schedule(static) if (nlaw * lat_.nx() > kParallelMinItems)
-  for (std::ptrdiff_t q = 0; q < nlaw; ++q) {
-    const std::size_t r = law_rows_[static_cast<std::size_t>(q)];
+  for_each_law_row([&](std::size_t r) {
     double* eu = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
     double* ed = eu + scratch_stride_;
     const auto energies = [eu, ed](index_t i, double e, const BilinearLaw& law, double h) {
@@ -1288,7 +1292,7 @@ Simulation::BarEnergies Simulation::sum_bar_energies(bool intact_done) const {
     }
     u[r] = su;
     d[r] = sd;
-  }
+  });
   BarEnergies out;
   for (std::size_t r = 0; r < u.size(); ++r) { // row order: the same for any thread count
     out.elastic += u[r];
@@ -1324,14 +1328,7 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
   // The other rows through the bar law: force and damage (dissipated energy over what the bar
   // dissipates when broken, Gf A^f) in a loop of doubles, the states apart.
   const bool per_bar = table_.per_bar();
-  law_rows_.clear();
-  for (std::size_t r = 0; r < bar_rows_.size(); ++r)
-    if (row_damaged_[r] || per_bar)
-      law_rows_.push_back(r);
-  const auto nlaw = static_cast<std::ptrdiff_t>(law_rows_.size());
-#pragma omp parallel for schedule(static) if (nlaw * lat_.nx() > kParallelMinItems)
-  for (std::ptrdiff_t q = 0; q < nlaw; ++q) {
-    const std::size_t r = law_rows_[static_cast<std::size_t>(q)];
+  for_each_law_row([&](std::size_t r) {
     const BarRow& row = bar_rows_[r];
     const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
     double* f = force.data() + b0;
@@ -1349,7 +1346,7 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
                             per_bar ? table_.e_r_bar()[b] : mat.e_r};
       state[b] = static_cast<std::uint8_t>(law.state(h_[b]));
     }
-  }
+  });
 }
 
 void Simulation::internal_forces(std::vector<double>& fx, std::vector<double>& fy,

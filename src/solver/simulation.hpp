@@ -266,6 +266,8 @@ private:
   // lane(i, strain, law, history) for each bar i of row r by the bar law, in a loop GCC can
   // vectorise; returns the row's bar count. PerBar: the material varies per bar.
   template <bool PerBar, class F> index_t visit_law_row(std::size_t r, F&& lane) const;
+  // visit(r) for every row that goes through the bar law, rows in parallel.
+  template <class F> void for_each_law_row(F&& visit) const;
   // visit(first bar, bar count, k = E A / l0, extension(i) = l - l0) for intact bar row r.
   template <class F> void visit_intact_row(std::size_t r, F&& visit) const;
   double intact_row_energy(std::size_t r) const;
