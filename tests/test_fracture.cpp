@@ -175,6 +175,76 @@ TEST(Fracture, EnergyBalanceHoldsThroughDynamicFracture) {
   }
 }
 
+// A report step takes each row's elastic energy from the forces the bar pass has just written,
+// U = s l (l - l0) / 2, and a row's dissipated energy from the last report unless one of its
+// histories changed since. Both must agree with the bar law applied bar by bar
+// (bar_energies(): stored_energy and dissipated_energy of BarTable's law) at every report of a
+// dynamic fracture run, with a uniform material and with one whose E, e_p and Gf vary per bar,
+// to rounding: each bar's term is the same product in another order or with its multiplications
+// and additions fused otherwise (a few ulps), and all terms are positive, so relative 1e-12 is
+// some 10^3 ulps of margin. A row whose changed histories were missed would be off by the
+// energy its bars dissipated since the last report, orders of magnitude more. Reports every 7
+// steps, so that rows change between reports and others do not. Every fifth report the VTU
+// snapshot's bar values too.
+TEST(Fracture, ReportEnergiesAndSnapshotsMatchTheBarLaw) {
+  for (bool per_bar : {false, true}) {
+    const index_t n = 48;
+    const MaterialSpec m = unit_material(0.01, 3.0);
+    const Lattice lat(n, 1, n, 1.0);
+    Conditions c;
+    c.plane_strain_axis = 1;
+    c.velocities.push_back(
+        {face(lat, Face::ZMax), kDofZ, {0, 0, 0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
+    c.velocities.push_back(
+        {face(lat, Face::ZMin), kDofZ, {0, 0, -0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
+    const Rectangle notch{
+        "notch", {-0.1, -0.1, 0.5 * n + 0.25}, {0.25 * n + 0.1, 0, 0}, {0, 1.2, 0}};
+    const CutResult cut = cut_bars(lat, notch, false);
+    BarFields fields;
+    if (per_bar) // graded along x: E from 0.8 to 1.2, e_p and Gf likewise
+      for (index_t b = 0; b < lat.num_bars(); ++b) {
+        const double g = 0.8 + 0.4 * lat.bar_centre(b).x / n;
+        fields.E.push_back(g * m.E);
+        fields.e_p.push_back(g * *m.e_p);
+        fields.Gf.push_back(g * m.Gf);
+      }
+    Simulation sim = make_sim(n, 1, n, 1.0, m, c, {}, cut.bars, fields);
+    ASSERT_EQ(sim.table().per_bar(), per_bar);
+    int reports = 0;
+    std::vector<std::uint8_t> state;
+    std::vector<double> damage_ratio, force;
+    for (int s = 0; sim.time() < 150.0; ++s) {
+      if (s % 7 != 0) {
+        sim.step();
+        continue;
+      }
+      // The report is of the state at the start of the step, u_n, with the histories the step
+      // raises to max(h, e_n): the elastic energy by the law before the step (the law's force
+      // takes max(h, e) already), the dissipated energy after it.
+      const double elastic = sim.bar_energies().elastic;
+      sim.step(true);
+      ++reports;
+      const EnergyReport& r = sim.last_report();
+      ASSERT_NEAR(r.elastic, elastic, 1e-12 * elastic) << "step " << s;
+      const double damage = sim.bar_energies().damage;
+      ASSERT_NEAR(r.damage_dissipated, damage, 1e-12 * damage) << "step " << s;
+      if (reports % 5 != 0)
+        continue;
+      // The snapshot's bar values against the law bar by bar: force to rounding (the largest
+      // force is of order E A e_r, so 1e-12 of it), state exactly. An intact row with a bar
+      // strained past e_p since the last bar pass must not be given the elastic force.
+      sim.bar_snapshot(state, damage_ratio, force);
+      for (index_t b = 0; b < lat.num_bars(); ++b) {
+        ASSERT_NEAR(force[b], sim.bar_force(b), 1e-12 * 0.03) << "step " << s << " bar " << b;
+        ASSERT_EQ(state[b], static_cast<std::uint8_t>(sim.bar_state(b))) << "bar " << b;
+      }
+    }
+    EXPECT_GT(reports, 30);
+    EXPECT_GT(sim.broken_count(), cut.bars.size() + 20) << "the crack did not run";
+    EXPECT_GT(sim.last_report().damage_dissipated, 0.0);
+  }
+}
+
 // Events are complete: every bar that broke during the run logged `broken` once, after or
 // with its `softening` event; pre-cracked bars log nothing.
 TEST(Fracture, EventsAreCompleteAndOrdered) {

@@ -330,6 +330,8 @@ void Simulation::set_velocity(const std::function<Vec3(Vec3)>& v_of_X) {
 // intact rows skip reading the history.
 void Simulation::mark_damaged_rows() {
   row_damaged_.assign(bar_rows_.size(), 0);
+  row_dissipated_.assign(bar_rows_.size(), 0.0);
+  row_history_changed_.assign(bar_rows_.size(), 1); // the histories may all be new
   for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
     const BarRow& row = bar_rows_[r];
     const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
@@ -577,9 +579,10 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
           v.s[n - 1] *= scale;
         }
       }
-      // On a report step an intact row's elastic energy, its displacements still in cache.
-      if (energies && intact && !past && !per_bar)
-        energy_rows_u_[r] = intact_row_energy(r);
+      // On a report step the row's elastic energy, its displacements still in cache.
+      if (energies)
+        energy_rows_u_[r] = intact && !past && !per_bar ? intact_row_energy(r)
+                                                        : row_energy_from_forces(r, v.s);
       if (!past)
         continue;
       // Slow path: some bar strained past its history. Recompute its strain, raise the
@@ -601,6 +604,7 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
           events.push_back({b0 + i, BarState::Broken, step});
         v.h[i] = e;
         row_damaged_[r] = 1;
+        row_history_changed_[r] = 1;
       }
     }
   }
@@ -1125,7 +1129,7 @@ void Simulation::step(bool report) {
       work_half.add(row_load_half_[r]);
     // Damping: the part of this step's dissipation a dt v_n . m v_n that lies before t_n,
     // taken as half of it (the exact split a m v_n . dt v_{n-1/2} / 2 differs by O(dt^2)).
-    const BarEnergies bars = sum_bar_energies(true); // intact rows done in the bar pass
+    const BarEnergies bars = sum_bar_energies(true); // elastic energies done in the bar pass
     const double elastic = bars.elastic, damage = bars.damage;
     if (step_ == 0)
       ledger_.set_initial(elastic + kinetic.value());
@@ -1217,12 +1221,27 @@ double Simulation::intact_row_energy(std::size_t r) const {
   return u;
 }
 
-template <class F> void Simulation::for_each_law_row(F&& visit) const {
-  // The rows that go through the bar law (damaged, or every row of a material that varies per
-  // bar), shared out evenly among the threads: a crack's damaged rows lie together.
+double Simulation::row_energy_from_forces(std::size_t r, const double* __restrict s) const {
+  // U = F e l0 / 2 with F = s l and e l0 = l - l0: the area under the secant (the elastic
+  // line in compression) for whatever law and history gave s, and the row's area factors,
+  // which s already holds. The same as BarTable's stored_energy up to rounding.
+  double u = 0.0;
+  visit_intact_row(r, [&](index_t, index_t n, double, auto&& extension) {
+    const double l0 = lat_.family(bar_rows_[r].family).l0;
+#pragma omp simd reduction(+ : u)
+    for (index_t i = 0; i < n; ++i) {
+      const double dl = extension(i);
+      u += s[i] * (l0 + dl) * dl;
+    }
+  });
+  return 0.5 * u;
+}
+
+template <class P, class F> void Simulation::for_each_row_by_law(P&& take, F&& visit) const {
+  // Shared out evenly among the threads: a crack's damaged rows lie together.
   law_rows_.clear();
   for (std::size_t r = 0; r < bar_rows_.size(); ++r)
-    if (row_damaged_[r] || table_.per_bar())
+    if (take(r))
       law_rows_.push_back(r);
   const auto nlaw = static_cast<std::ptrdiff_t>(law_rows_.size());
 #pragma omp parallel for schedule(static) if (nlaw * lat_.nx() > kParallelMinItems)
@@ -1262,37 +1281,53 @@ template <bool PerBar, class F> index_t Simulation::visit_law_row(std::size_t r,
   return n;
 }
 
-Simulation::BarEnergies Simulation::sum_bar_energies(bool intact_done) const {
+Simulation::BarEnergies Simulation::sum_bar_energies(bool in_pass) const {
   std::vector<double>& u = energy_rows_u_;
   std::vector<double>& d = energy_rows_d_;
   d.assign(bar_rows_.size(), 0.0);
   const bool per_bar = table_.per_bar();
-  const auto nrows = static_cast<std::ptrdiff_t>(bar_rows_.size());
-#pragma omp parallel for schedule(static) if (lat_.num_bars() > kParallelMinItems)
-  for (std::ptrdiff_t q = 0; q < nrows; ++q) {
-    const auto r = static_cast<std::size_t>(q);
-    if (row_damaged_[r] || per_bar)
-      u[r] = 0.0; // summed bar by bar below
-    else if (!intact_done)
-      u[r] = intact_row_energy(r);
+  if (in_pass) {
+    // Elastic energies from the bar pass; a row's dissipated energy depends on its histories
+    // alone, so only the rows whose histories changed go through the law again.
+    for_each_row_by_law(
+        [&](std::size_t r) { return (row_damaged_[r] || per_bar) && row_history_changed_[r]; },
+        [&](std::size_t r) {
+                       double* ed = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())]
+                                        .data();
+                       const auto dissipated = [ed](index_t i, double, const BilinearLaw& law,
+                                                    double h) { ed[i] = law.dissipated_energy(h); };
+                       const index_t n = per_bar ? visit_law_row<true>(r, dissipated)
+                                                 : visit_law_row<false>(r, dissipated);
+                       double sd = 0.0;
+                       for (index_t i = 0; i < n; ++i) // in bar order, as a bar-by-bar sum
+                         sd += ed[i];
+                       row_dissipated_[r] = sd;
+                       row_history_changed_[r] = 0;
+                     });
+    for (std::size_t r = 0; r < bar_rows_.size(); ++r)
+      if (row_damaged_[r] || per_bar)
+        d[r] = row_dissipated_[r];
+  } else {
+    // The reference: every row through the law, which also takes a bar of a row still marked
+    // intact that is strained past e_p now (the next bar pass would mark the row damaged).
+    for_each_row_by_law([](std::size_t) { return true; }, [&](std::size_t r) {
+      double* eu = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
+      double* ed = eu + scratch_stride_;
+      const auto energies = [eu, ed](index_t i, double e, const BilinearLaw& law, double h) {
+        eu[i] = law.stored_energy(e, h);
+        ed[i] = law.dissipated_energy(h);
+      };
+      const index_t n =
+          per_bar ? visit_law_row<true>(r, energies) : visit_law_row<false>(r, energies);
+      double su = 0.0, sd = 0.0;
+      for (index_t i = 0; i < n; ++i) { // in bar order, as a bar-by-bar sum
+        su += eu[i];
+        sd += ed[i];
+      }
+      u[r] = su;
+      d[r] = sd;
+    });
   }
-  for_each_law_row([&](std::size_t r) {
-    double* eu = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
-    double* ed = eu + scratch_stride_;
-    const auto energies = [eu, ed](index_t i, double e, const BilinearLaw& law, double h) {
-      eu[i] = law.stored_energy(e, h);
-      ed[i] = law.dissipated_energy(h);
-    };
-    const index_t n =
-        per_bar ? visit_law_row<true>(r, energies) : visit_law_row<false>(r, energies);
-    double su = 0.0, sd = 0.0;
-    for (index_t i = 0; i < n; ++i) { // in bar order, as a bar-by-bar sum
-      su += eu[i];
-      sd += ed[i];
-    }
-    u[r] = su;
-    d[r] = sd;
-  });
   BarEnergies out;
   for (std::size_t r = 0; r < u.size(); ++r) { // row order: the same for any thread count
     out.elastic += u[r];
@@ -1314,21 +1349,32 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
   state.resize(lat_.num_bars());
   damage.resize(lat_.num_bars());
   force.resize(lat_.num_bars());
-  // Intact rows of a uniform material: F = k (l - l0) times the area factor, no damage.
+  // Intact rows of a uniform material: F = k (l - l0) times the area factor, no damage, unless
+  // a bar of the row is strained past e_p now (the next bar pass would mark the row damaged):
+  // such a row goes through the law with the others.
+  snapshot_by_law_.assign(bar_rows_.size(), 0);
   for_each_intact_row([&](std::size_t r, index_t b0, index_t n, double k, auto&& extension) {
     const double inner = k * bar_rows_[r].factor, end = k * bar_rows_[r].end_factor;
+    const double peak = table_.family(bar_rows_[r].family).e_p * lat_.family(bar_rows_[r].family).l0;
     // (The forces in a loop of doubles alone, which GCC vectorises; the bytes apart.)
     double* __restrict f = force.data() + b0;
-#pragma omp simd
-    for (index_t i = 0; i < n; ++i)
-      f[i] = (i == 0 || i + 1 == n ? end : inner) * extension(i);
+    int past = 0;
+#pragma omp simd reduction(+ : past)
+    for (index_t i = 0; i < n; ++i) {
+      const double dl = extension(i);
+      f[i] = (i == 0 || i + 1 == n ? end : inner) * dl;
+      past += dl > peak ? 1 : 0;
+    }
+    snapshot_by_law_[r] = past > 0;
     std::fill_n(damage.begin() + b0, n, 0.0);
     std::fill_n(state.begin() + b0, n, std::uint8_t{0});
   });
   // The other rows through the bar law: force and damage (dissipated energy over what the bar
   // dissipates when broken, Gf A^f) in a loop of doubles, the states apart.
   const bool per_bar = table_.per_bar();
-  for_each_law_row([&](std::size_t r) {
+  for_each_row_by_law([&](std::size_t r) {
+    return row_damaged_[r] || per_bar || snapshot_by_law_[r];
+  }, [&](std::size_t r) {
     const BarRow& row = bar_rows_[r];
     const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
     double* f = force.data() + b0;

@@ -256,21 +256,25 @@ private:
   // never strained past e_p, rows in parallel; none when the material varies per bar.
   template <class F> void for_each_intact_row(F&& visit) const;
   // Bars of plane rows [begin, end) into that plane's force buffer `s`; with `energies`, the
-  // elastic energy of each intact row into energy_rows_u_.
+  // elastic energy of each row into energy_rows_u_.
   void bar_rows(std::size_t begin, std::size_t end, double* s, bool energies);
   // The bar forces of line l from a plane buffer into a packed store (Pack), or back.
   template <bool Pack> void move_bar_line(std::size_t l, double* plane, double* packed) const;
-  // Elastic and dissipated energy of all bars; `intact_done`: the bar pass has already put the
-  // intact rows' energies in energy_rows_u_.
-  BarEnergies sum_bar_energies(bool intact_done) const;
+  // Elastic and dissipated energy of all bars. `in_pass`: the bar pass has already put every
+  // row's elastic energy in energy_rows_u_, and the dissipated energy of a row whose histories
+  // have not changed since it was last summed is taken from row_dissipated_; otherwise every
+  // row goes through the bar law (the reference).
+  BarEnergies sum_bar_energies(bool in_pass) const;
   // lane(i, strain, law, history) for each bar i of row r by the bar law, in a loop GCC can
   // vectorise; returns the row's bar count. PerBar: the material varies per bar.
   template <bool PerBar, class F> index_t visit_law_row(std::size_t r, F&& lane) const;
-  // visit(r) for every row that goes through the bar law, rows in parallel.
-  template <class F> void for_each_law_row(F&& visit) const;
+  // visit(r) for every bar row where take(r), rows in parallel (to go through the bar law).
+  template <class P, class F> void for_each_row_by_law(P&& take, F&& visit) const;
   // visit(first bar, bar count, k = E A / l0, extension(i) = l - l0) for intact bar row r.
   template <class F> void visit_intact_row(std::size_t r, F&& visit) const;
   double intact_row_energy(std::size_t r) const;
+  // Elastic energy of the row whose forces s = F / l the bar pass has just written.
+  double row_energy_from_forces(std::size_t r, const double* s) const;
   // Nodes of plane rows [begin, end), with the bar forces of their plane and the one below.
   template <bool Damped, bool Loads, bool Report>
   void node_rows_range(std::size_t begin, std::size_t end, const double* s_plane,
@@ -354,6 +358,11 @@ private:
   ExactSum report_work_, report_damping2_; // of the last report (see report_work)
 
   mutable std::vector<double> energy_rows_u_, energy_rows_d_; // per-row sums (bar_energies)
+  // Per bar row: the dissipated energy of its bars when last summed, and whether a history of
+  // the row has changed since (set by the bar pass and by mark_damaged_rows).
+  mutable std::vector<double> row_dissipated_;
+  mutable std::vector<std::uint8_t> row_history_changed_;
+  mutable std::vector<std::uint8_t> snapshot_by_law_; // bar_snapshot: intact rows past e_p now
   mutable std::vector<std::size_t> law_rows_;                 // the rows taken through the bar law
 
   Ledger ledger_;
