@@ -478,11 +478,16 @@ bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_ro
 // row needs 1 / sqrt(l^2) and nothing else: with AVX-512 it comes from the 14-bit estimate
 // refined by two Newton steps (relative error ~1e-16, the rounding of l itself), which keeps
 // the divider free. Returns true if some bar may be past e_p (the caller then redoes the row
-// with the general kernel).
+// with the general kernel). With `Energy`, also sum w (l - l0)^2 over the row into *energy,
+// w = 1 for inner bars and `end_scale` for the first and last (their area factor over the
+// row's).
 #pragma GCC diagnostic push
-// GCC 12's AVX-512 headers trip this warning on _mm512_maskz_loadu_pd (a known false alarm).
+// GCC 12's AVX-512 headers trip this warning on _mm512_maskz_loadu_pd, _mm512_rsqrt14_pd and
+// _mm512_rcp14_pd (a known false alarm: their unused pass-through operand).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p) {
+template <bool Energy>
+bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p,
+                       double end_scale, double* energy) {
   // Slightly below the exact threshold, so that a bar at e_p to within rounding is handed to
   // the general kernel, whose strain test is the reference.
   const double lp2 = l0 * l0 * (1.0 + e_p) * (1.0 + e_p) * (1.0 - 1e-12);
@@ -490,15 +495,20 @@ bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k
   const __m512d vx = _mm512_set1_pd(d0.x), vy = _mm512_set1_pd(d0.y), vz = _mm512_set1_pd(d0.z);
   const __m512d vk = _mm512_set1_pd(k), vkl0 = _mm512_set1_pd(k * l0);
   const __m512d vlp2 = _mm512_set1_pd(lp2), v15 = _mm512_set1_pd(1.5), v05 = _mm512_set1_pd(0.5);
+  const __m512d vl0 = _mm512_set1_pd(l0), vend = _mm512_set1_pd(end_scale),
+                v2 = _mm512_set1_pd(2.0);
+  __m512d acc = _mm512_setzero_pd();
   __mmask8 past = 0;
   // Whole vectors with plain loads and stores, the row's tail (n not a multiple of 8) masked.
   const auto vector = [&]<bool Tail>(index_t i, __mmask8 m) {
     const auto load = [m](const double* p) {
       return Tail ? _mm512_maskz_loadu_pd(m, p) : _mm512_loadu_pd(p);
     };
-    const __m512d dx = _mm512_add_pd(vx, _mm512_sub_pd(load(r.ubx + i), load(r.uax + i)));
-    const __m512d dy = _mm512_add_pd(vy, _mm512_sub_pd(load(r.uby + i), load(r.uay + i)));
-    const __m512d dz = _mm512_add_pd(vz, _mm512_sub_pd(load(r.ubz + i), load(r.uaz + i)));
+    const __m512d ux = _mm512_sub_pd(load(r.ubx + i), load(r.uax + i));
+    const __m512d uy = _mm512_sub_pd(load(r.uby + i), load(r.uay + i));
+    const __m512d uz = _mm512_sub_pd(load(r.ubz + i), load(r.uaz + i));
+    const __m512d dx = _mm512_add_pd(vx, ux), dy = _mm512_add_pd(vy, uy),
+                  dz = _mm512_add_pd(vz, uz);
     const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
     const __m512d h = _mm512_mul_pd(v05, l2);
     __m512d y = _mm512_rsqrt14_pd(l2);
@@ -512,28 +522,67 @@ bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k
       _mm512_storeu_pd(r.s + i, s);
       past |= _mm512_cmp_pd_mask(l2, vlp2, _CMP_GT_OQ);
     }
+    if constexpr (Energy) {
+      // dl = l - l0 = (l^2 - l0^2) / (l + l0), with l^2 - l0^2 = u . (u + 2 d0) from the
+      // relative displacement u: no cancellation, and exactly 0 for an unstrained bar. The
+      // reciprocal from the 14-bit estimate and two Newton steps. Zero beyond the row's end,
+      // weighted at its ends.
+      const __m512d q = _mm512_fmadd_pd(
+          ux, _mm512_add_pd(ux, _mm512_add_pd(vx, vx)),
+          _mm512_fmadd_pd(uy, _mm512_add_pd(uy, _mm512_add_pd(vy, vy)),
+                          _mm512_mul_pd(uz, _mm512_add_pd(uz, _mm512_add_pd(vz, vz)))));
+      const __m512d den = _mm512_fmadd_pd(l2, y, vl0);
+      __m512d rc = _mm512_rcp14_pd(den);
+      rc = _mm512_mul_pd(rc, _mm512_fnmadd_pd(den, rc, v2));
+      rc = _mm512_mul_pd(rc, _mm512_fnmadd_pd(den, rc, v2));
+      const __m512d dl = _mm512_maskz_mul_pd(m, q, rc);
+      __mmask8 ends = 0;
+      if (i == 0)
+        ends |= 1;
+      if (n - 1 - i < 8)
+        ends |= static_cast<__mmask8>(1u << (n - 1 - i));
+      const __m512d w = _mm512_mask_blend_pd(ends, _mm512_set1_pd(1.0), vend);
+      acc = _mm512_fmadd_pd(_mm512_mul_pd(w, dl), dl, acc);
+    }
   };
   index_t i = 0;
   for (; i + 8 <= n; i += 8)
     vector.template operator()<false>(i, 0xFF);
   if (i < n)
     vector.template operator()<true>(i, static_cast<__mmask8>((1u << (n - i)) - 1u));
+  if constexpr (Energy)
+    *energy = _mm512_reduce_add_pd(acc);
   return past != 0;
 #else
   int past = 0;
-#pragma omp simd reduction(+ : past)
+  double sum = 0.0;
+#pragma omp simd reduction(+ : past, sum)
   for (index_t i = 0; i < n; ++i) {
-    const double dx = d0.x + (r.ubx[i] - r.uax[i]);
-    const double dy = d0.y + (r.uby[i] - r.uay[i]);
-    const double dz = d0.z + (r.ubz[i] - r.uaz[i]);
+    const double ux = r.ubx[i] - r.uax[i], uy = r.uby[i] - r.uay[i], uz = r.ubz[i] - r.uaz[i];
+    const double dx = d0.x + ux, dy = d0.y + uy, dz = d0.z + uz;
     const double l2 = dx * dx + dy * dy + dz * dz;
-    r.s[i] = k - k * l0 / std::sqrt(l2);
+    const double l = std::sqrt(l2);
+    r.s[i] = k - k * l0 / l;
     past += l2 > lp2 ? 1 : 0;
+    if constexpr (Energy) { // as above
+      const double dl =
+          (ux * (ux + 2 * d0.x) + uy * (uy + 2 * d0.y) + uz * (uz + 2 * d0.z)) / (l + l0);
+      sum += (i == 0 || i + 1 == n ? end_scale : 1.0) * dl * dl;
+    }
   }
+  if constexpr (Energy)
+    *energy = sum;
   return past > 0;
 #endif
 }
-#pragma GCC diagnostic pop
+
+bool intact_row_forces(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p) {
+  return intact_row_kernel<false>(n, r, d0, l0, k, e_p, 1.0, nullptr);
+}
+bool intact_row_forces_energy(index_t n, const RowView& r, Vec3 d0, double l0, double k,
+                              double e_p, double end_scale, double* energy) {
+  return intact_row_kernel<true>(n, r, d0, l0, k, e_p, end_scale, energy);
+}
 
 } // namespace
 
@@ -562,6 +611,7 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
       const index_t n = fi.ni;
       const bool intact = !row_damaged_[r];
       bool past;
+      double intact_sum = 0.0; // the intact kernel's sum of w (l - l0)^2 on report steps
       if (per_bar) {
         past = intact ? bar_row_kernel<true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
                                                    epb + b0, erb + b0)
@@ -569,7 +619,10 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
                                                     epb + b0, erb + b0);
       } else {
         const double k = mat.k * row.factor;
-        past = intact && intact_row_kernel(n, v, fi.d0, fi.l0, k, mat.e_p);
+        past = intact && (energies ? intact_row_forces_energy(n, v, fi.d0, fi.l0, k, mat.e_p,
+                                                              row.end_factor / row.factor,
+                                                              &intact_sum)
+                                   : intact_row_forces(n, v, fi.d0, fi.l0, k, mat.e_p));
         if (!intact || past)
           past = bar_row_kernel<false, false>(n, v, fi.d0, fi.l0, k, mat.e_p, mat.e_r, nullptr,
                                               nullptr, nullptr);
@@ -579,9 +632,10 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
           v.s[n - 1] *= scale;
         }
       }
-      // On a report step the row's elastic energy, its displacements still in cache.
+      // On a report step the row's elastic energy, its displacements still in cache: an intact
+      // row's U = k (l - l0)^2 / 2 with the area factors, from the kernel's sum.
       if (energies)
-        energy_rows_u_[r] = intact && !past && !per_bar ? intact_row_energy(r)
+        energy_rows_u_[r] = intact && !past && !per_bar ? 0.5 * (mat.k * row.factor) * intact_sum
                                                         : row_energy_from_forces(r, v.s);
       if (!past)
         continue;
@@ -609,6 +663,8 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
     }
   }
 }
+// (The diagnostic pragmas above also cover bar_rows, where GCC inlines the kernel.)
+#pragma GCC diagnostic pop
 
 namespace {
 
@@ -1201,24 +1257,6 @@ template <class F> void Simulation::for_each_intact_row(F&& visit) const {
       visit_intact_row(r, [&](index_t b0, index_t n, double k, auto&& extension) {
         visit(r, b0, n, k, extension);
       });
-}
-
-double Simulation::intact_row_energy(std::size_t r) const {
-  // Every bar elastic: U = k l0^2 e^2 / 2 = k (l - l0)^2 / 2 with the row's inner and end area
-  // factors; nothing dissipated.
-  double u = 0.0;
-  visit_intact_row(r, [&](index_t, index_t n, double k, auto&& extension) {
-    double sum = 0.0;
-    const index_t last = n - 1;
-#pragma omp simd reduction(+ : sum)
-    for (index_t i = 1; i < last; ++i) {
-      const double dl = extension(i);
-      sum += dl * dl;
-    }
-    const double e0 = extension(0), e1 = last > 0 ? extension(last) : 0.0;
-    u = 0.5 * k * (bar_rows_[r].factor * sum + bar_rows_[r].end_factor * (e0 * e0 + e1 * e1));
-  });
-  return u;
 }
 
 double Simulation::row_energy_from_forces(std::size_t r, const double* __restrict s) const {
