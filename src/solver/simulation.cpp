@@ -443,14 +443,19 @@ struct RowView {
 // The common path of a row: no history change. Returns true if some bar of the row went
 // past its history (softening further or breaking), to be handled by the slow path.
 // `k_row` is E A / l0 times the area factor; per-bar arrays replace it when present.
-// `Intact`: every bar of the row still has h = e_p (no history to read).
-template <bool PerBar, bool Intact>
+// `Intact`: every bar of the row still has h = e_p (no history to read). With `Energy`, also
+// sum w s l (l - l0) over the row into *energy (twice the elastic energy: F e l0, the area
+// under the secant), w = 1 for inner bars and `end_scale` for the first and last (the factor
+// the caller applies to their forces afterwards).
+template <bool PerBar, bool Intact, bool Energy = false>
 bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_row, double e_p,
                     double e_r, const double* __restrict k_bar, const double* __restrict ep_bar,
-                    const double* __restrict er_bar) {
+                    const double* __restrict er_bar, double end_scale = 1.0,
+                    double* energy = nullptr) {
   const double inv_l0 = 1.0 / l0;
   int past = 0; // an int, not a bool: GCC vectorises only arithmetic reductions
-#pragma omp simd reduction(+ : past)
+  double sum = 0.0;
+#pragma omp simd reduction(+ : past, sum)
   for (index_t i = 0; i < n; ++i) {
     const double dx = d0.x + (r.ubx[i] - r.uax[i]);
     const double dy = d0.y + (r.uby[i] - r.uay[i]);
@@ -467,9 +472,14 @@ bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_ro
     const double num_t = ep * (er - m);
     const double num = tension ? (num_t > 0.0 ? num_t : 0.0) : 1.0;
     const double den = tension ? (er - ep) * m : 1.0;
-    r.s[i] = k * (l - l0) * num / (l * den);
+    const double si = k * (l - l0) * num / (l * den);
+    r.s[i] = si;
     past += e > h ? 1 : 0;
+    if constexpr (Energy)
+      sum += (i == 0 || i + 1 == n ? end_scale : 1.0) * si * l * (l - l0);
   }
+  if constexpr (Energy)
+    *energy = sum;
   return past > 0;
 }
 
@@ -611,32 +621,44 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
       const index_t n = fi.ni;
       const bool intact = !row_damaged_[r];
       bool past;
-      double intact_sum = 0.0; // the intact kernel's sum of w (l - l0)^2 on report steps
+      // On a report step the kernels also give the row's elastic energy, its displacements
+      // still in cache: the intact kernel sum w (l - l0)^2, the others sum w s l (l - l0).
+      double intact_sum = 0.0, law_sum = 0.0;
+      bool by_law = true;
       if (per_bar) {
-        past = intact ? bar_row_kernel<true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
-                                                   epb + b0, erb + b0)
-                      : bar_row_kernel<true, false>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
-                                                    epb + b0, erb + b0);
+        if (energies)
+          past = intact ? bar_row_kernel<true, true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0,
+                                                           kb + b0, epb + b0, erb + b0, 1.0,
+                                                           &law_sum)
+                        : bar_row_kernel<true, false, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0,
+                                                            kb + b0, epb + b0, erb + b0, 1.0,
+                                                            &law_sum);
+        else
+          past = intact ? bar_row_kernel<true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
+                                                     epb + b0, erb + b0)
+                        : bar_row_kernel<true, false>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
+                                                      epb + b0, erb + b0);
       } else {
-        const double k = mat.k * row.factor;
+        const double k = mat.k * row.factor, scale = row.end_factor / row.factor;
         past = intact && (energies ? intact_row_forces_energy(n, v, fi.d0, fi.l0, k, mat.e_p,
-                                                              row.end_factor / row.factor,
-                                                              &intact_sum)
+                                                              scale, &intact_sum)
                                    : intact_row_forces(n, v, fi.d0, fi.l0, k, mat.e_p));
-        if (!intact || past)
-          past = bar_row_kernel<false, false>(n, v, fi.d0, fi.l0, k, mat.e_p, mat.e_r, nullptr,
-                                              nullptr, nullptr);
+        by_law = !intact || past;
+        if (by_law)
+          past = energies ? bar_row_kernel<false, false, true>(n, v, fi.d0, fi.l0, k, mat.e_p,
+                                                               mat.e_r, nullptr, nullptr, nullptr,
+                                                               scale, &law_sum)
+                          : bar_row_kernel<false, false>(n, v, fi.d0, fi.l0, k, mat.e_p,
+                                                         mat.e_r, nullptr, nullptr, nullptr);
         if (row.end_factor != row.factor) {
-          const double scale = row.end_factor / row.factor;
           v.s[0] *= scale;
           v.s[n - 1] *= scale;
         }
+        if (energies && !by_law)
+          energy_rows_u_[r] = 0.5 * k * intact_sum; // U = k (l - l0)^2 / 2, area factors in w
       }
-      // On a report step the row's elastic energy, its displacements still in cache: an intact
-      // row's U = k (l - l0)^2 / 2 with the area factors, from the kernel's sum.
-      if (energies)
-        energy_rows_u_[r] = intact && !past && !per_bar ? 0.5 * (mat.k * row.factor) * intact_sum
-                                                        : row_energy_from_forces(r, v.s);
+      if (energies && by_law)
+        energy_rows_u_[r] = 0.5 * law_sum;
       if (!past)
         continue;
       // Slow path: some bar strained past its history. Recompute its strain, raise the
@@ -1257,22 +1279,6 @@ template <class F> void Simulation::for_each_intact_row(F&& visit) const {
       visit_intact_row(r, [&](index_t b0, index_t n, double k, auto&& extension) {
         visit(r, b0, n, k, extension);
       });
-}
-
-double Simulation::row_energy_from_forces(std::size_t r, const double* __restrict s) const {
-  // U = F e l0 / 2 with F = s l and e l0 = l - l0: the area under the secant (the elastic
-  // line in compression) for whatever law and history gave s, and the row's area factors,
-  // which s already holds. The same as BarTable's stored_energy up to rounding.
-  double u = 0.0;
-  visit_intact_row(r, [&](index_t, index_t n, double, auto&& extension) {
-    const double l0 = lat_.family(bar_rows_[r].family).l0;
-#pragma omp simd reduction(+ : u)
-    for (index_t i = 0; i < n; ++i) {
-      const double dl = extension(i);
-      u += s[i] * (l0 + dl) * dl;
-    }
-  });
-  return 0.5 * u;
 }
 
 template <class P, class F> void Simulation::for_each_row_by_law(P&& take, F&& visit) const {

@@ -272,8 +272,6 @@ private:
   template <class P, class F> void for_each_row_by_law(P&& take, F&& visit) const;
   // visit(first bar, bar count, k = E A / l0, extension(i) = l - l0) for intact bar row r.
   template <class F> void visit_intact_row(std::size_t r, F&& visit) const;
-  // Elastic energy of the row whose forces s = F / l the bar pass has just written.
-  double row_energy_from_forces(std::size_t r, const double* s) const;
   // Nodes of plane rows [begin, end), with the bar forces of their plane and the one below.
   template <bool Damped, bool Loads, bool Report>
   void node_rows_range(std::size_t begin, std::size_t end, const double* s_plane,
