@@ -122,34 +122,46 @@ struct DynamicRun {
   std::uint64_t broken = 0, precracked = 0;
 };
 
+// The plate of the dynamic fracture runs: 48 x 1 x 48 modules (35k bars, above
+// kParallelMinItems, so 2 threads really share the rows) in plane strain, an edge notch over a
+// quarter of the width at mid-height.
+struct NotchedPlate {
+  static constexpr index_t n = 48;
+  MaterialSpec m = unit_material(0.01, 3.0);
+  Lattice lat{n, 1, n, 1.0};
+  Conditions c;
+  std::vector<index_t> notch;
+  NotchedPlate() {
+    c.plane_strain_axis = 1;
+    c.velocities.push_back(
+        {face(lat, Face::ZMax), kDofZ, {0, 0, 0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
+    c.velocities.push_back(
+        {face(lat, Face::ZMin), kDofZ, {0, 0, -0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
+    const Rectangle r{"notch", {-0.1, -0.1, 0.5 * n + 0.25}, {0.25 * n + 0.1, 0, 0}, {0, 1.2, 0}};
+    notch = cut_bars(lat, r, false).bars;
+  }
+  Simulation sim(const SolverOptions& o = {}, const BarFields& fields = {}) const {
+    return make_sim(n, 1, n, 1.0, m, c, o, notch, fields);
+  }
+};
+
 DynamicRun dynamic_fracture(int threads, double damping = 0.0) {
   const int threads_before = omp_get_max_threads();
   omp_set_num_threads(threads);
-  // 48 x 1 x 48 modules: 35k bars, above kParallelMinItems, so 2 threads really share the rows.
-  const index_t n = 48;
-  const MaterialSpec m = unit_material(0.01, 3.0);
-  const Lattice lat(n, 1, n, 1.0);
-  Conditions c;
-  c.plane_strain_axis = 1;
-  c.velocities.push_back(
-      {face(lat, Face::ZMax), kDofZ, {0, 0, 0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
-  c.velocities.push_back(
-      {face(lat, Face::ZMin), kDofZ, {0, 0, -0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
-  const Rectangle notch{"notch", {-0.1, -0.1, 0.5 * n + 0.25}, {0.25 * n + 0.1, 0, 0}, {0, 1.2, 0}};
-  const CutResult cut = cut_bars(lat, notch, false);
+  const NotchedPlate plate;
   SolverOptions o;
   o.damping = damping;
-  Simulation sim = make_sim(n, 1, n, 1.0, m, c, o, cut.bars);
-  EXPECT_GT(static_cast<std::int64_t>(lat.num_bars()), kParallelMinItems);
+  Simulation sim = plate.sim(o);
+  EXPECT_GT(static_cast<std::int64_t>(plate.lat.num_bars()), kParallelMinItems);
   DynamicRun run;
-  run.precracked = cut.bars.size();
+  run.precracked = plate.notch.size();
   for (int s = 0; sim.time() < 150.0; ++s) {
     sim.step(s % 20 == 0);
     if (s % 20 == 0)
       run.reports.push_back(sim.last_report());
   }
   run.events = sim.take_events();
-  for (index_t node = 0; node < lat.num_nodes(); ++node) {
+  for (index_t node = 0; node < plate.lat.num_nodes(); ++node) {
     const Vec3 u = sim.displacement(node);
     run.u.insert(run.u.end(), {u.x, u.y, u.z});
   }
@@ -188,18 +200,10 @@ TEST(Fracture, EnergyBalanceHoldsThroughDynamicFracture) {
 // snapshot's bar values too.
 TEST(Fracture, ReportEnergiesAndSnapshotsMatchTheBarLaw) {
   for (bool per_bar : {false, true}) {
-    const index_t n = 48;
-    const MaterialSpec m = unit_material(0.01, 3.0);
-    const Lattice lat(n, 1, n, 1.0);
-    Conditions c;
-    c.plane_strain_axis = 1;
-    c.velocities.push_back(
-        {face(lat, Face::ZMax), kDofZ, {0, 0, 0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
-    c.velocities.push_back(
-        {face(lat, Face::ZMin), kDofZ, {0, 0, -0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
-    const Rectangle notch{
-        "notch", {-0.1, -0.1, 0.5 * n + 0.25}, {0.25 * n + 0.1, 0, 0}, {0, 1.2, 0}};
-    const CutResult cut = cut_bars(lat, notch, false);
+    const NotchedPlate plate;
+    const Lattice& lat = plate.lat;
+    const MaterialSpec& m = plate.m;
+    const double n = NotchedPlate::n;
     BarFields fields;
     if (per_bar) // graded along x: E from 0.8 to 1.2, e_p and Gf likewise
       for (index_t b = 0; b < lat.num_bars(); ++b) {
@@ -208,7 +212,7 @@ TEST(Fracture, ReportEnergiesAndSnapshotsMatchTheBarLaw) {
         fields.e_p.push_back(g * *m.e_p);
         fields.Gf.push_back(g * m.Gf);
       }
-    Simulation sim = make_sim(n, 1, n, 1.0, m, c, {}, cut.bars, fields);
+    Simulation sim = plate.sim({}, fields);
     ASSERT_EQ(sim.table().per_bar(), per_bar);
     int reports = 0;
     std::vector<std::uint8_t> state;
@@ -240,7 +244,7 @@ TEST(Fracture, ReportEnergiesAndSnapshotsMatchTheBarLaw) {
       }
     }
     EXPECT_GT(reports, 30);
-    EXPECT_GT(sim.broken_count(), cut.bars.size() + 20) << "the crack did not run";
+    EXPECT_GT(sim.broken_count(), plate.notch.size() + 20) << "the crack did not run";
     EXPECT_GT(sim.last_report().damage_dissipated, 0.0);
   }
 }
