@@ -589,8 +589,8 @@ bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k
 bool intact_row_forces(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p) {
   return intact_row_kernel<false>(n, r, d0, l0, k, e_p, 1.0, nullptr);
 }
-bool intact_row_forces_energy(index_t n, const RowView& r, Vec3 d0, double l0, double k,
-                              double e_p, double end_scale, double* energy) {
+bool intact_row_forces_energy(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p,
+                              double end_scale, double* energy) {
   return intact_row_kernel<true>(n, r, d0, l0, k, e_p, end_scale, energy);
 }
 
@@ -627,12 +627,11 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
       bool by_law = true;
       if (per_bar) {
         if (energies)
-          past = intact ? bar_row_kernel<true, true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0,
-                                                           kb + b0, epb + b0, erb + b0, 1.0,
-                                                           &law_sum)
-                        : bar_row_kernel<true, false, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0,
-                                                            kb + b0, epb + b0, erb + b0, 1.0,
-                                                            &law_sum);
+          past = intact
+                     ? bar_row_kernel<true, true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
+                                                        epb + b0, erb + b0, 1.0, &law_sum)
+                     : bar_row_kernel<true, false, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
+                                                         epb + b0, erb + b0, 1.0, &law_sum);
         else
           past = intact ? bar_row_kernel<true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
                                                      epb + b0, erb + b0)
@@ -640,16 +639,16 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
                                                       epb + b0, erb + b0);
       } else {
         const double k = mat.k * row.factor, scale = row.end_factor / row.factor;
-        past = intact && (energies ? intact_row_forces_energy(n, v, fi.d0, fi.l0, k, mat.e_p,
-                                                              scale, &intact_sum)
+        past = intact && (energies ? intact_row_forces_energy(n, v, fi.d0, fi.l0, k, mat.e_p, scale,
+                                                              &intact_sum)
                                    : intact_row_forces(n, v, fi.d0, fi.l0, k, mat.e_p));
         by_law = !intact || past;
         if (by_law)
           past = energies ? bar_row_kernel<false, false, true>(n, v, fi.d0, fi.l0, k, mat.e_p,
                                                                mat.e_r, nullptr, nullptr, nullptr,
                                                                scale, &law_sum)
-                          : bar_row_kernel<false, false>(n, v, fi.d0, fi.l0, k, mat.e_p,
-                                                         mat.e_r, nullptr, nullptr, nullptr);
+                          : bar_row_kernel<false, false>(n, v, fi.d0, fi.l0, k, mat.e_p, mat.e_r,
+                                                         nullptr, nullptr, nullptr);
         if (row.end_factor != row.factor) {
           v.s[0] *= scale;
           v.s[n - 1] *= scale;
@@ -1336,41 +1335,43 @@ Simulation::BarEnergies Simulation::sum_bar_energies(bool in_pass) const {
     for_each_row_by_law(
         [&](std::size_t r) { return (row_damaged_[r] || per_bar) && row_history_changed_[r]; },
         [&](std::size_t r) {
-                       double* ed = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())]
-                                        .data();
-                       const auto dissipated = [ed](index_t i, double, const BilinearLaw& law,
-                                                    double h) { ed[i] = law.dissipated_energy(h); };
-                       const index_t n = per_bar ? visit_law_row<true>(r, dissipated)
-                                                 : visit_law_row<false>(r, dissipated);
-                       double sd = 0.0;
-                       for (index_t i = 0; i < n; ++i) // in bar order, as a bar-by-bar sum
-                         sd += ed[i];
-                       row_dissipated_[r] = sd;
-                       row_history_changed_[r] = 0;
-                     });
+          double* ed = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
+          const auto dissipated = [ed](index_t i, double, const BilinearLaw& law, double h) {
+            ed[i] = law.dissipated_energy(h);
+          };
+          const index_t n =
+              per_bar ? visit_law_row<true>(r, dissipated) : visit_law_row<false>(r, dissipated);
+          double sd = 0.0;
+          for (index_t i = 0; i < n; ++i) // in bar order, as a bar-by-bar sum
+            sd += ed[i];
+          row_dissipated_[r] = sd;
+          row_history_changed_[r] = 0;
+        });
     for (std::size_t r = 0; r < bar_rows_.size(); ++r)
       if (row_damaged_[r] || per_bar)
         d[r] = row_dissipated_[r];
   } else {
     // The reference: every row through the law, which also takes a bar of a row still marked
     // intact that is strained past e_p now (the next bar pass would mark the row damaged).
-    for_each_row_by_law([](std::size_t) { return true; }, [&](std::size_t r) {
-      double* eu = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
-      double* ed = eu + scratch_stride_;
-      const auto energies = [eu, ed](index_t i, double e, const BilinearLaw& law, double h) {
-        eu[i] = law.stored_energy(e, h);
-        ed[i] = law.dissipated_energy(h);
-      };
-      const index_t n =
-          per_bar ? visit_law_row<true>(r, energies) : visit_law_row<false>(r, energies);
-      double su = 0.0, sd = 0.0;
-      for (index_t i = 0; i < n; ++i) { // in bar order, as a bar-by-bar sum
-        su += eu[i];
-        sd += ed[i];
-      }
-      u[r] = su;
-      d[r] = sd;
-    });
+    for_each_row_by_law(
+        [](std::size_t) { return true; },
+        [&](std::size_t r) {
+          double* eu = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
+          double* ed = eu + scratch_stride_;
+          const auto energies = [eu, ed](index_t i, double e, const BilinearLaw& law, double h) {
+            eu[i] = law.stored_energy(e, h);
+            ed[i] = law.dissipated_energy(h);
+          };
+          const index_t n =
+              per_bar ? visit_law_row<true>(r, energies) : visit_law_row<false>(r, energies);
+          double su = 0.0, sd = 0.0;
+          for (index_t i = 0; i < n; ++i) { // in bar order, as a bar-by-bar sum
+            su += eu[i];
+            sd += ed[i];
+          }
+          u[r] = su;
+          d[r] = sd;
+        });
   }
   BarEnergies out;
   for (std::size_t r = 0; r < u.size(); ++r) { // row order: the same for any thread count
@@ -1399,7 +1400,8 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
   snapshot_by_law_.assign(bar_rows_.size(), 0);
   for_each_intact_row([&](std::size_t r, index_t b0, index_t n, double k, auto&& extension) {
     const double inner = k * bar_rows_[r].factor, end = k * bar_rows_[r].end_factor;
-    const double peak = table_.family(bar_rows_[r].family).e_p * lat_.family(bar_rows_[r].family).l0;
+    const double peak =
+        table_.family(bar_rows_[r].family).e_p * lat_.family(bar_rows_[r].family).l0;
     // (The forces in a loop of doubles alone, which GCC vectorises; the bytes apart.)
     double* __restrict f = force.data() + b0;
     int past = 0;
@@ -1416,27 +1418,29 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
   // The other rows through the bar law: force and damage (dissipated energy over what the bar
   // dissipates when broken, Gf A^f) in a loop of doubles, the states apart.
   const bool per_bar = table_.per_bar();
-  for_each_row_by_law([&](std::size_t r) {
-    return row_damaged_[r] || per_bar || snapshot_by_law_[r];
-  }, [&](std::size_t r) {
-    const BarRow& row = bar_rows_[r];
-    const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
-    double* f = force.data() + b0;
-    double* d = damage.data() + b0;
-    const auto values = [f, d](index_t i, double e, const BilinearLaw& law, double h) {
-      d[i] = std::isinf(h) ? 1.0
-                           : law.dissipated_energy(h) / (0.5 * law.EA * law.e_p * law.e_r * law.l0);
-      f[i] = law.force(e, h);
-    };
-    const index_t n = per_bar ? visit_law_row<true>(r, values) : visit_law_row<false>(r, values);
-    const FamilyMaterial& mat = table_.family(row.family);
-    for (index_t i = 0; i < n; ++i) {
-      const index_t b = b0 + i;
-      const BilinearLaw law{0.0, 0.0, per_bar ? table_.e_p_bar()[b] : mat.e_p,
-                            per_bar ? table_.e_r_bar()[b] : mat.e_r};
-      state[b] = static_cast<std::uint8_t>(law.state(h_[b]));
-    }
-  });
+  for_each_row_by_law(
+      [&](std::size_t r) { return row_damaged_[r] || per_bar || snapshot_by_law_[r]; },
+      [&](std::size_t r) {
+        const BarRow& row = bar_rows_[r];
+        const index_t b0 = lat_.bar(static_cast<Family>(row.family), 0, row.j, row.k);
+        double* f = force.data() + b0;
+        double* d = damage.data() + b0;
+        const auto values = [f, d](index_t i, double e, const BilinearLaw& law, double h) {
+          d[i] = std::isinf(h)
+                     ? 1.0
+                     : law.dissipated_energy(h) / (0.5 * law.EA * law.e_p * law.e_r * law.l0);
+          f[i] = law.force(e, h);
+        };
+        const index_t n =
+            per_bar ? visit_law_row<true>(r, values) : visit_law_row<false>(r, values);
+        const FamilyMaterial& mat = table_.family(row.family);
+        for (index_t i = 0; i < n; ++i) {
+          const index_t b = b0 + i;
+          const BilinearLaw law{0.0, 0.0, per_bar ? table_.e_p_bar()[b] : mat.e_p,
+                                per_bar ? table_.e_r_bar()[b] : mat.e_r};
+          state[b] = static_cast<std::uint8_t>(law.state(h_[b]));
+        }
+      });
 }
 
 void Simulation::internal_forces(std::vector<double>& fx, std::vector<double>& fy,

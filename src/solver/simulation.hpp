@@ -360,7 +360,7 @@ private:
   mutable std::vector<double> row_dissipated_;
   mutable std::vector<std::uint8_t> row_history_changed_;
   mutable std::vector<std::uint8_t> snapshot_by_law_; // bar_snapshot: intact rows past e_p now
-  mutable std::vector<std::size_t> law_rows_;                 // the rows taken through the bar law
+  mutable std::vector<std::size_t> law_rows_;         // the rows taken through the bar law
 
   Ledger ledger_;
   EnergyReport report_{};
