@@ -8,6 +8,7 @@
 #include <cstring>
 #include <fmt/format.h>
 #include <omp.h>
+#include <type_traits>
 #if defined(__AVX512F__)
 #include <immintrin.h>
 #endif
@@ -306,6 +307,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   for (auto& sc : thread_scratch_)
     sc.resize(7 * scratch_stride_);
   energy_rows_u_.assign(bar_rows_.size(), 0.0);
+  energy_rows_d_.assign(bar_rows_.size(), 0.0);
   law_rows_.reserve(bar_rows_.size());
   const std::size_t nrows = node_rows_.size();
   row_damping_.assign(nrows, 0.0);
@@ -624,31 +626,30 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
       // On a report step the kernels also give the row's elastic energy, its displacements
       // still in cache: the intact kernel sum w (l - l0)^2, the others sum w s l (l - l0).
       double intact_sum = 0.0, law_sum = 0.0;
+      const double k = mat.k * row.factor, scale = per_bar ? 1.0 : row.end_factor / row.factor;
+      // The general kernel; a material that varies per bar has its area factors in k_bar.
+      const auto general = [&](auto per_bar_c, auto intact_c) {
+        constexpr bool P = decltype(per_bar_c)::value, I = decltype(intact_c)::value;
+        const double* kr = P ? kb + b0 : nullptr;
+        const double* epr = P ? epb + b0 : nullptr;
+        const double* err = P ? erb + b0 : nullptr;
+        return energies
+                   ? bar_row_kernel<P, I, true>(n, v, fi.d0, fi.l0, k, mat.e_p, mat.e_r, kr, epr,
+                                                err, scale, &law_sum)
+                   : bar_row_kernel<P, I>(n, v, fi.d0, fi.l0, k, mat.e_p, mat.e_r, kr, epr, err);
+      };
+      using yes = std::true_type;
+      using no = std::false_type;
       bool by_law = true;
       if (per_bar) {
-        if (energies)
-          past = intact
-                     ? bar_row_kernel<true, true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
-                                                        epb + b0, erb + b0, 1.0, &law_sum)
-                     : bar_row_kernel<true, false, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
-                                                         epb + b0, erb + b0, 1.0, &law_sum);
-        else
-          past = intact ? bar_row_kernel<true, true>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
-                                                     epb + b0, erb + b0)
-                        : bar_row_kernel<true, false>(n, v, fi.d0, fi.l0, 0.0, 0.0, 0.0, kb + b0,
-                                                      epb + b0, erb + b0);
+        past = intact ? general(yes{}, yes{}) : general(yes{}, no{});
       } else {
-        const double k = mat.k * row.factor, scale = row.end_factor / row.factor;
         past = intact && (energies ? intact_row_forces_energy(n, v, fi.d0, fi.l0, k, mat.e_p, scale,
                                                               &intact_sum)
                                    : intact_row_forces(n, v, fi.d0, fi.l0, k, mat.e_p));
         by_law = !intact || past;
         if (by_law)
-          past = energies ? bar_row_kernel<false, false, true>(n, v, fi.d0, fi.l0, k, mat.e_p,
-                                                               mat.e_r, nullptr, nullptr, nullptr,
-                                                               scale, &law_sum)
-                          : bar_row_kernel<false, false>(n, v, fi.d0, fi.l0, k, mat.e_p, mat.e_r,
-                                                         nullptr, nullptr, nullptr);
+          past = general(no{}, no{});
         if (row.end_factor != row.factor) {
           v.s[0] *= scale;
           v.s[n - 1] *= scale;
@@ -1206,7 +1207,7 @@ void Simulation::step(bool report) {
       work_half.add(row_load_half_[r]);
     // Damping: the part of this step's dissipation a dt v_n . m v_n that lies before t_n,
     // taken as half of it (the exact split a m v_n . dt v_{n-1/2} / 2 differs by O(dt^2)).
-    const BarEnergies bars = sum_bar_energies(true); // elastic energies done in the bar pass
+    const BarEnergies bars = report_bar_energies();
     const double elastic = bars.elastic, damage = bars.damage;
     if (step_ == 0)
       ledger_.set_initial(elastic + kinetic.value());
@@ -1324,65 +1325,56 @@ template <bool PerBar, class F> index_t Simulation::visit_law_row(std::size_t r,
   return n;
 }
 
-Simulation::BarEnergies Simulation::sum_bar_energies(bool in_pass) const {
-  std::vector<double>& u = energy_rows_u_;
-  std::vector<double>& d = energy_rows_d_;
-  d.assign(bar_rows_.size(), 0.0);
-  const bool per_bar = table_.per_bar();
-  if (in_pass) {
-    // Elastic energies from the bar pass; a row's dissipated energy depends on its histories
-    // alone, so only the rows whose histories changed go through the law again.
-    for_each_row_by_law(
-        [&](std::size_t r) { return (row_damaged_[r] || per_bar) && row_history_changed_[r]; },
-        [&](std::size_t r) {
-          double* ed = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
-          const auto dissipated = [ed](index_t i, double, const BilinearLaw& law, double h) {
-            ed[i] = law.dissipated_energy(h);
-          };
-          const index_t n =
-              per_bar ? visit_law_row<true>(r, dissipated) : visit_law_row<false>(r, dissipated);
-          double sd = 0.0;
-          for (index_t i = 0; i < n; ++i) // in bar order, as a bar-by-bar sum
-            sd += ed[i];
-          row_dissipated_[r] = sd;
-          row_history_changed_[r] = 0;
-        });
-    for (std::size_t r = 0; r < bar_rows_.size(); ++r)
-      if (row_damaged_[r] || per_bar)
-        d[r] = row_dissipated_[r];
-  } else {
-    // The reference: every row through the law, which also takes a bar of a row still marked
-    // intact that is strained past e_p now (the next bar pass would mark the row damaged).
-    for_each_row_by_law(
-        [](std::size_t) { return true; },
-        [&](std::size_t r) {
-          double* eu = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
-          double* ed = eu + scratch_stride_;
-          const auto energies = [eu, ed](index_t i, double e, const BilinearLaw& law, double h) {
-            eu[i] = law.stored_energy(e, h);
-            ed[i] = law.dissipated_energy(h);
-          };
-          const index_t n =
-              per_bar ? visit_law_row<true>(r, energies) : visit_law_row<false>(r, energies);
-          double su = 0.0, sd = 0.0;
-          for (index_t i = 0; i < n; ++i) { // in bar order, as a bar-by-bar sum
-            su += eu[i];
-            sd += ed[i];
-          }
-          u[r] = su;
-          d[r] = sd;
-        });
+Simulation::BarEnergies Simulation::law_row_energies(std::size_t r, bool elastic) const {
+  double* eu = thread_scratch_[static_cast<std::size_t>(omp_get_thread_num())].data();
+  double* ed = eu + scratch_stride_;
+  const auto energies = [eu, ed, elastic](index_t i, double e, const BilinearLaw& law, double h) {
+    if (elastic)
+      eu[i] = law.stored_energy(e, h);
+    ed[i] = law.dissipated_energy(h);
+  };
+  const index_t n =
+      table_.per_bar() ? visit_law_row<true>(r, energies) : visit_law_row<false>(r, energies);
+  BarEnergies sums;
+  for (index_t i = 0; i < n; ++i) { // in bar order, as a bar-by-bar sum
+    if (elastic)
+      sums.elastic += eu[i];
+    sums.damage += ed[i];
   }
+  return sums;
+}
+
+Simulation::BarEnergies Simulation::report_bar_energies() {
+  // Elastic energies from the bar pass; a row's dissipated energy depends on its histories
+  // alone, so only the rows whose histories changed go through the law again.
+  const bool per_bar = table_.per_bar();
+  for_each_row_by_law(
+      [&](std::size_t r) { return (row_damaged_[r] || per_bar) && row_history_changed_[r]; },
+      [&](std::size_t r) {
+        row_dissipated_[r] = law_row_energies(r, false).damage;
+        row_history_changed_[r] = 0;
+      });
   BarEnergies out;
-  for (std::size_t r = 0; r < u.size(); ++r) { // row order: the same for any thread count
-    out.elastic += u[r];
-    out.damage += d[r];
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r) { // row order: the same for any thread count
+    energy_rows_d_[r] = row_damaged_[r] || per_bar ? row_dissipated_[r] : 0.0;
+    out.elastic += energy_rows_u_[r];
+    out.damage += energy_rows_d_[r];
   }
   return out;
 }
 
 Simulation::BarEnergies Simulation::bar_energies() const {
-  return sum_bar_energies(false);
+  // The reference: every row through the law, which also takes a bar of a row still marked
+  // intact that is strained past e_p now (the next bar pass would mark the row damaged).
+  std::vector<BarEnergies> rows(bar_rows_.size());
+  for_each_row_by_law([](std::size_t) { return true; },
+                      [&](std::size_t r) { rows[r] = law_row_energies(r, true); });
+  BarEnergies out;
+  for (const BarEnergies& e : rows) { // row order: the same for any thread count
+    out.elastic += e.elastic;
+    out.damage += e.damage;
+  }
+  return out;
 }
 
 double Simulation::stored_energy() const {

@@ -204,7 +204,8 @@ public:
   struct BarEnergies {
     double elastic = 0.0, damage = 0.0;
   };
-  // Elastic and dissipated energy of all bars, summed row by row (deterministic).
+  // Elastic and dissipated energy of all bars, every bar through the bar law, summed row by
+  // row (deterministic): the reference the report steps' energies are tested against.
   BarEnergies bar_energies() const;
   // Per bar: state (0 intact, 1 softening, 2 broken), damage (dissipated / Gf A^f), axial force.
   void bar_snapshot(std::vector<std::uint8_t>& state, std::vector<double>& damage,
@@ -260,11 +261,12 @@ private:
   void bar_rows(std::size_t begin, std::size_t end, double* s, bool energies);
   // The bar forces of line l from a plane buffer into a packed store (Pack), or back.
   template <bool Pack> void move_bar_line(std::size_t l, double* plane, double* packed) const;
-  // Elastic and dissipated energy of all bars. `in_pass`: the bar pass has already put every
-  // row's elastic energy in energy_rows_u_, and the dissipated energy of a row whose histories
-  // have not changed since it was last summed is taken from row_dissipated_; otherwise every
-  // row goes through the bar law (the reference).
-  BarEnergies sum_bar_energies(bool in_pass) const;
+  // A report step's elastic and dissipated energy of all bars, per row in energy_rows_u_ and
+  // energy_rows_d_: the elastic energies the bar pass has put there, the dissipated energy
+  // kept per row (row_dissipated_) and recomputed where a history has changed.
+  BarEnergies report_bar_energies();
+  // Row r's dissipated energy, and with `elastic` its elastic energy, by the bar law.
+  BarEnergies law_row_energies(std::size_t r, bool elastic) const;
   // lane(i, strain, law, history) for each bar i of row r by the bar law, in a loop GCC can
   // vectorise; returns the row's bar count. PerBar: the material varies per bar.
   template <bool PerBar, class F> index_t visit_law_row(std::size_t r, F&& lane) const;
@@ -354,11 +356,11 @@ private:
   ExactSum cond_work_, cond_work_half_, cond_damping_, cond_kinetic_;
   ExactSum report_work_, report_damping2_; // of the last report (see report_work)
 
-  mutable std::vector<double> energy_rows_u_, energy_rows_d_; // per-row sums (bar_energies)
+  std::vector<double> energy_rows_u_, energy_rows_d_; // per-row sums of the last report
   // Per bar row: the dissipated energy of its bars when last summed, and whether a history of
   // the row has changed since (set by the bar pass and by mark_damaged_rows).
-  mutable std::vector<double> row_dissipated_;
-  mutable std::vector<std::uint8_t> row_history_changed_;
+  std::vector<double> row_dissipated_;
+  std::vector<std::uint8_t> row_history_changed_;
   mutable std::vector<std::uint8_t> snapshot_by_law_; // bar_snapshot: intact rows past e_p now
   mutable std::vector<std::size_t> law_rows_;         // the rows taken through the bar law
 
