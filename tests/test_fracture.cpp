@@ -306,7 +306,31 @@ std::vector<double> displacements(const Simulation& sim) {
 
 // A plate lying in x-y (one module along z) has too few k-planes for thread slabs and is
 // shared out line by line instead: 1 and 2 threads must still agree bit for bit.
-std::vector<double> thin_plate_run(int threads, std::vector<Event>& events, int block_lines = 0) {
+// How a test run is stepped: the walk's block size, the intact fast path, how often a step
+// reports its energies; and what it saw of the fast path (the largest share of bar rows that
+// took it in a step).
+struct RunSettings {
+  int block_lines = 0;
+  bool at_nodes = true;
+  int report_every = 0; // 0: the run's own
+  double* fast_share = nullptr;
+};
+
+// Steps `sim` while `more(step)`, reporting every `every` steps, noting the fast path's share.
+template <class More>
+void step_run(Simulation& sim, int every, const RunSettings& rs, More&& more) {
+  if (rs.report_every > 0)
+    every = rs.report_every;
+  for (int s = 0; more(); ++s) {
+    sim.step(s % every == 0);
+    if (rs.fast_share)
+      *rs.fast_share = std::max(*rs.fast_share, static_cast<double>(sim.intact_fast_rows()) /
+                                                    static_cast<double>(sim.bar_row_count()));
+  }
+}
+
+std::vector<double> thin_plate_run(int threads, std::vector<Event>& events,
+                                   const RunSettings& rs = {}) {
   const int before = omp_get_max_threads();
   omp_set_num_threads(threads);
   const index_t n = 48;
@@ -320,11 +344,11 @@ std::vector<double> thin_plate_run(int threads, std::vector<Event>& events, int 
       {face(lat, Face::YMin), kDofY, {0, -0.01, 0}, TimeFunction({LinearRamp{1.0, 5.0}})});
   const Rectangle notch{"notch", {-0.1, 0.5 * n + 0.25, -0.1}, {0.25 * n + 0.1, 0, 0}, {0, 0, 1.2}};
   SolverOptions o;
-  o.block_lines = block_lines;
+  o.block_lines = rs.block_lines;
+  o.intact_at_nodes = rs.at_nodes;
   Simulation sim = make_sim(n, n, 1, 1.0, m, c, o, cut_bars(lat, notch, false).bars);
   EXPECT_GT(static_cast<std::int64_t>(lat.num_bars()), kParallelMinItems);
-  for (int s = 0; sim.time() < 120.0; ++s)
-    sim.step(s % 50 == 0);
+  step_run(sim, 50, rs, [&] { return sim.time() < 120.0; });
   events = sim.take_events();
   std::vector<double> u = displacements(sim);
   omp_set_num_threads(before);
@@ -351,7 +375,8 @@ namespace {
 
 // A notched cube pulled apart along z: thick enough for thread slabs along k, and 17 lines per
 // plane, so that small blocks split every plane.
-std::vector<double> notched_cube_run(int threads, int block_lines, std::vector<Event>& events) {
+std::vector<double> notched_cube_run(int threads, std::vector<Event>& events,
+                                     const RunSettings& rs = {}) {
   const int before = omp_get_max_threads();
   omp_set_num_threads(threads);
   const index_t n = 16;
@@ -365,12 +390,12 @@ std::vector<double> notched_cube_run(int threads, int block_lines, std::vector<E
   const Rectangle notch{
       "notch", {-0.1, -0.1, 0.5 * n + 0.25}, {0.25 * n + 0.1, 0, 0}, {0, n + 0.2, 0}};
   SolverOptions o;
-  o.block_lines = block_lines;
+  o.block_lines = rs.block_lines;
+  o.intact_at_nodes = rs.at_nodes;
   o.damping = 0.02;
   Simulation sim = make_sim(n, n, n, 1.0, m, c, o, cut_bars(lat, notch, false).bars);
   EXPECT_GT(static_cast<std::int64_t>(lat.num_bars()), kParallelMinItems);
-  for (int s = 0; sim.time() < 60.0; ++s)
-    sim.step(s % 25 == 0);
+  step_run(sim, 25, rs, [&] { return sim.time() < 60.0; });
   events = sim.take_events();
   std::vector<double> u = displacements(sim);
   u.push_back(sim.last_report().elastic);
@@ -400,26 +425,109 @@ void expect_same_run(const std::vector<double>& a, const std::vector<Event>& ea,
 // automatic size, on 1 and 2 threads, give the same bits, fracture included.
 TEST(Fracture, BlocksOfTheWalkChangeNoResult) {
   std::vector<Event> e_ref;
-  const std::vector<double> ref = notched_cube_run(1, 1000, e_ref);
+  const std::vector<double> ref = notched_cube_run(1, e_ref, {.block_lines = 1000});
   EXPECT_GT(e_ref.size(), 20u) << "the crack did not run";
   for (int threads : {1, 2})
     for (int block : {1, 5, 0}) {
       std::vector<Event> e;
-      const std::vector<double> u = notched_cube_run(threads, block, e);
+      const std::vector<double> u = notched_cube_run(threads, e, {.block_lines = block});
       expect_same_run(ref, e_ref, u, e,
                       "cube, " + std::to_string(threads) + " threads, block " +
                           std::to_string(block));
     }
   std::vector<Event> p_ref;
-  const std::vector<double> plate = thin_plate_run(1, p_ref, 1000);
+  const std::vector<double> plate = thin_plate_run(1, p_ref, {.block_lines = 1000});
   for (int threads : {1, 2})
     for (int block : {1, 5}) {
       std::vector<Event> e;
-      const std::vector<double> u = thin_plate_run(threads, e, block);
+      const std::vector<double> u = thin_plate_run(threads, e, {.block_lines = block});
       expect_same_run(plate, p_ref, u, e,
                       "plate, " + std::to_string(threads) + " threads, block " +
                           std::to_string(block));
     }
+}
+
+// Intact bars of a uniform material take their forces at their nodes wherever the last step's
+// strains and motions prove that none can pass e_p in the step (SolverOptions::intact_at_nodes),
+// and through the bar pass's buffers elsewhere. Both ways compute the same s the same way, so
+// the runs must be the same bits with the fast path on and off, cracks included: the notched
+// cube (damped, bars leaving the fast path as the crack runs) and the plane-strain plate, on 1
+// and 2 threads. And the fast path must have been taken: a run that never takes it would pass
+// the comparison trivially.
+TEST(Fracture, IntactBarsAtTheNodesChangeNoResult) {
+  double share_off = 0.0;
+  std::vector<Event> e_ref;
+  const std::vector<double> ref =
+      notched_cube_run(1, e_ref, {.at_nodes = false, .fast_share = &share_off});
+  EXPECT_GT(e_ref.size(), 20u) << "the crack did not run";
+  EXPECT_EQ(share_off, 0.0);
+  for (int threads : {1, 2}) {
+    double share = 0.0;
+    std::vector<Event> e;
+    const std::vector<double> u = notched_cube_run(threads, e, {.fast_share = &share});
+    expect_same_run(ref, e_ref, u, e, "cube, " + std::to_string(threads) + " threads");
+    EXPECT_GT(share, 0.5) << "cube, " << threads << " threads: the fast path was hardly taken";
+  }
+  std::vector<Event> p_ref;
+  const std::vector<double> plate = thin_plate_run(1, p_ref, {.at_nodes = false});
+  for (int threads : {1, 2}) {
+    double share = 0.0;
+    std::vector<Event> e;
+    const std::vector<double> u = thin_plate_run(threads, e, {.fast_share = &share});
+    expect_same_run(plate, p_ref, u, e, "plate, " + std::to_string(threads) + " threads");
+    EXPECT_GT(share, 0.5) << "plate, " << threads << " threads: the fast path was hardly taken";
+  }
+}
+
+// On a plain step without damping the node kernel moves the nodes itself; a report step, or
+// a row with imposed velocities, takes integrate_row, which also sums the energies. The two
+// compute the same update with the same operations, so how often a run reports changes none
+// of its motion: the undamped plate reporting at every step, every 7 and every 50.
+TEST(Fracture, ReportingChangesNoMotion) {
+  std::vector<Event> e_ref;
+  const std::vector<double> ref = thin_plate_run(1, e_ref, {.report_every = 50});
+  EXPECT_GT(e_ref.size(), 20u) << "the crack did not run";
+  for (int every : {1, 7}) {
+    std::vector<Event> e;
+    const std::vector<double> u = thin_plate_run(2, e, {.report_every = every});
+    expect_same_run(ref, e_ref, u, e, "reports every " + std::to_string(every) + " steps");
+  }
+}
+
+// A prism pulled so slowly that its bars creep up to e_p over a thousand steps while each
+// step moves a node by a hundredth of what the fast path allows: the bars take the fast path
+// while far from e_p, must leave it as they pass their watch length (l0 (1 + e_p / 2)), and
+// must soften and break at the same steps, to the bit, as without the fast path.
+std::vector<double> slow_prism_run(bool at_nodes, std::vector<Event>& events, double& share) {
+  const MaterialSpec m = unit_material(0.01, 3.0);
+  const Lattice lat(16, 3, 3, 1.0);
+  Conditions c;
+  c.fixed.push_back({face(lat, Face::XMin), kDofAll});
+  // 16 modules reach e_p = 0.01 at an elongation of 0.16: t = 800 at 2e-4.
+  c.velocities.push_back(
+      {face(lat, Face::XMax), kDofX, {2e-4, 0, 0}, TimeFunction({LinearRamp{1.0, 50.0}})});
+  SolverOptions o;
+  o.intact_at_nodes = at_nodes;
+  Simulation sim = make_sim(16, 3, 3, 1.0, m, c, o);
+  step_run(sim, 100, {.fast_share = &share}, [&] { return sim.time() < 1100.0; });
+  events = sim.take_events();
+  std::vector<double> u = displacements(sim);
+  u.push_back(sim.last_report().elastic);
+  u.push_back(sim.last_report().damage_dissipated);
+  return u;
+}
+
+TEST(Fracture, SlowlyStrainedBarsLeaveTheFastPathInTime) {
+  std::vector<Event> e_ref, e;
+  double share_off = 0.0, share = 0.0;
+  const std::vector<double> ref = slow_prism_run(false, e_ref, share_off);
+  const std::vector<double> u = slow_prism_run(true, e, share);
+  std::size_t broken = 0;
+  for (const Event& ev : e_ref)
+    broken += ev.state == BarState::Broken;
+  EXPECT_GT(broken, 0u) << "no bar broke";
+  EXPECT_GT(share, 0.5) << "the fast path was hardly taken";
+  expect_same_run(ref, e_ref, u, e, "slowly pulled prism");
 }
 
 } // namespace

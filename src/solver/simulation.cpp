@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <fmt/format.h>
+#include <limits>
 #include <omp.h>
 #include <type_traits>
 #if defined(__AVX512F__)
@@ -16,6 +17,17 @@
 namespace ldem {
 
 namespace {
+
+// A strain ratio or a motion not yet measured: the intact fast path waits for it.
+constexpr double kUnknown = std::numeric_limits<double>::infinity();
+
+// Whether the node kernel is the AVX-512 one, which takes fast links and can also move the
+// nodes (node_row_forces).
+#if defined(__AVX512F__)
+constexpr bool kVectorKernel = true;
+#else
+constexpr bool kVectorKernel = false;
+#endif
 
 // Lumped masses: each module gives rho L^3 / 2 to its centre node and rho L^3 / 16 to each
 // of its 8 corners, so a corner carries (modules sharing it) / 16 rho L^3 (1/2 inside,
@@ -202,33 +214,113 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
         bar_rows_.push_back({f, j, k, inner, lat_.area_factor(fam, 0, j, k), slot(fi.a.at(0, j, k)),
                              slot(fi.b.at(0, j, k))});
       }
-  // The links of every node row, computed once (they cost more to derive than to read).
-  row_links_.resize(kMaxRowLinks * node_rows_.size());
-  row_link_count_.resize(node_rows_.size());
-  for (std::size_t r = 0; r < node_rows_.size(); ++r)
-    row_link_count_[r] = static_cast<std::uint8_t>(
-        row_links(lat_, node_rows_[r], &row_links_[kMaxRowLinks * r], slots_));
-  // The range of i each row gathers in one fused pass. A link missing at a row's end reads a
-  // zero pad of the plane buffer (s = 0) and a neighbouring slot's finite displacement, so the
-  // fused pass covers the whole row wherever those reads would stay inside the lattice's nodes
-  // in its own numbering (all rows but the first corner row and the rows that reach the end of
-  // the last centre row). That rule is the lattice's alone, so the slots change no result, and
-  // it keeps the reads inside the slots too (a row's slots start and end no earlier than its
-  // nodes do). Elsewhere only the range where every link is present, the ends link by link.
-  row_fused_.resize(node_rows_.size());
+  // The links of every node row, computed once (they cost more to derive than to read), their
+  // bar rows (in (k, j, family) order) and intact laws; rows of one kind share their constants.
+  std::vector<std::uint32_t> row_at((lat_.nz() + 1ull) * (lat_.ny() + 1ull) * kFamilies, 0);
+  row_inv_lp_.resize(bar_rows_.size());
+  row_watch_.resize(bar_rows_.size());
+  row_first_centre_.resize(bar_rows_.size());
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
+    const BarRow& row = bar_rows_[r];
+    row_at[(row.k * (lat_.ny() + 1ull) + row.j) * kFamilies +
+           static_cast<std::size_t>(row.family)] = static_cast<std::uint32_t>(r);
+    const double l0 = lat_.family(row.family).l0, e_p = table_.family(row.family).e_p;
+    row_inv_lp_[r] = 1.0 / (l0 * (1.0 + e_p));
+    const double lw = l0 * (1.0 + 0.5 * e_p); // the watch length (LinkConst)
+    row_watch_[r] = lw * lw * row_inv_lp_[r] * row_inv_lp_[r];
+    row_first_centre_[r] = row.family >= static_cast<int>(Family::CentreX);
+  }
+  const auto same = [](const LinkConst& a, const LinkConst& b) {
+    return a.rx == b.rx && a.ry == b.ry && a.rz == b.rz && a.k == b.k && a.l0 == b.l0 &&
+           a.kl0 == b.kl0 && a.scale == b.scale && a.lw2 == b.lw2 && a.ilo == b.ilo &&
+           a.ihi == b.ihi && a.dk == b.dk && a.first_node == b.first_node;
+  };
+  link_ref_.resize(kMaxRowLinks * node_rows_.size());
+  row_kind_.resize(node_rows_.size());
+  for (std::size_t r = 0; r < node_rows_.size(); ++r) {
+    RowLink links[kMaxRowLinks];
+    const int nl = row_links(lat_, node_rows_[r], links, slots_);
+    LinkConst kind[kMaxRowLinks]{};
+    const std::int64_t n = node_rows_[r].length;
+    std::int64_t lo = 0, hi = n;
+    for (int l = 0; l < nl; ++l) {
+      const RowLink& L = links[l];
+      const BarAddress a = lat_.bar_address(static_cast<index_t>(L.bar_base + L.ilo));
+      const std::uint32_t br =
+          row_at[(a.k * (lat_.ny() + 1ull) + a.j) * kFamilies + static_cast<std::size_t>(a.family)];
+      const BarRow& row = bar_rows_[br];
+      const FamilyInfo& fi = lat_.family(row.family);
+      const double k = table_.family(row.family).k * row.factor;
+      const double scale = table_.per_bar() ? 1.0 : row.end_factor / row.factor;
+      const double e_p = table_.family(row.family).e_p;
+      const double lw = fi.l0 * (1.0 + 0.5 * e_p);
+      kind[l] = {
+          L.r0.x,
+          L.r0.y,
+          L.r0.z,
+          k,
+          fi.l0,
+          k * fi.l0,
+          scale,
+          lw * lw,
+          L.ilo,
+          L.ihi,
+          L.dk,
+          lat_.bar_nodes(static_cast<index_t>(L.bar_base + L.ilo))[0] == node_rows_[r].first + L.ilo};
+      link_ref_[kMaxRowLinks * r + l] = {L.other_base, br, static_cast<std::int32_t>(L.plane_base)};
+      // A first or last bar with a factor of its own needs its lane scaled.
+      const std::int64_t own = scale != 1.0 ? 1 : 0;
+      lo = std::max(lo, std::int64_t{L.ilo} + own);
+      hi = std::min(hi, std::int64_t{L.ihi} - own);
+    }
+    std::size_t t = 0;
+    while (t < row_kinds_.size() &&
+           !(row_kinds_[t].n == n && row_kinds_[t].links == nl &&
+             std::equal(kind, kind + nl, &link_const_[kMaxRowLinks * t], same)))
+      ++t;
+    if (t == row_kinds_.size()) {
+      // Fewer than 7 links (a box a module or two wide): padded to 7 with links no lane has.
+      if (nl < 7)
+        lo = hi = 0;
+      hi = std::max(lo, hi);
+      row_kinds_.push_back({n, nl, lo, hi, edge_lanes_.size()});
+      link_const_.insert(link_const_.end(), kind, kind + kMaxRowLinks);
+      const auto lane = [](std::int64_t at, std::int64_t i) {
+        return at >= i && at < i + 8 ? static_cast<std::uint8_t>(1u << (at - i)) : std::uint8_t{0};
+      };
+      for (std::int64_t i = 0; i < n; i += 8) {
+        if (i >= lo && i + 8 <= hi)
+          continue;
+        for (int l = 0; l < kMaxRowLinks; ++l) {
+          const LinkConst& L = kind[l];
+          EdgeLanes e{0, 0, 0};
+          for (std::int64_t q = std::max(L.ilo, i); q < std::min(L.ihi, i + 8); ++q)
+            e.has = static_cast<std::uint8_t>(e.has | (1u << (q - i)));
+          if (L.scale != 1.0) {
+            e.first = lane(L.ilo, i);
+            e.last = lane(L.ihi - 1, i);
+          }
+          edge_lanes_.push_back(e);
+        }
+      }
+    }
+    row_kind_[r] = static_cast<std::uint16_t>(t);
+  }
+  // Where the portable kernel can take a whole row in one pass, from the bar pass's buffers: a
+  // link missing at a row's end reads a zero pad of the plane buffer (s = 0) and a neighbouring
+  // slot's finite displacement, so that holds wherever those reads stay inside the lattice's
+  // nodes in its own numbering (all rows but the first corner row and the rows that reach the
+  // end of the last centre row), which keeps them inside the slots too (a row's slots start
+  // and end no earlier than its nodes do).
+  row_whole_.assign(node_rows_.size(), 0);
   for (std::size_t r = 0; r < node_rows_.size(); ++r) {
     RowLink links[kMaxRowLinks];
     const int nl = row_links(lat_, node_rows_[r], links);
-    const index_t n = node_rows_[r].length;
     bool whole = true;
-    index_t ilo = 0, ihi = n;
-    for (int l = 0; l < nl; ++l) {
-      ilo = std::max(ilo, links[l].ilo);
-      ihi = std::min(ihi, links[l].ihi);
+    for (int l = 0; l < nl; ++l)
       whole = whole && links[l].other_base >= 0 &&
-              links[l].other_base + n <= std::int64_t{lat_.num_nodes()};
-    }
-    row_fused_[r] = whole ? std::pair{index_t{0}, n} : std::pair{ilo, std::max(ilo, ihi)};
+              links[l].other_base + node_rows_[r].length <= std::int64_t{lat_.num_nodes()};
+    row_whole_[r] = whole;
   }
   // Rows with imposed-velocity nodes, and where each such node's gathered force is kept.
   imposed_row_.assign(node_rows_.size(), -1);
@@ -247,12 +339,15 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     imposed_force_.assign(kept, 0.0);
     for (const ImposedVelocity& v : cond_.velocities) {
       imposed_force_at_.emplace_back();
+      imposed_node_row_.emplace_back();
       for (index_t n : v.set.nodes) {
         const NodeRow& row = node_rows_[row_of[n]];
         imposed_force_at_.back().push_back(
             {static_cast<std::size_t>(imposed_row_[row_of[n]]) + (n - row.first), row.length});
+        imposed_node_row_.back().push_back(static_cast<std::uint32_t>(row_of[n]));
       }
     }
+    imposed_motion_.assign(node_rows_.size(), 0.0);
   }
   row_held_.assign(node_rows_.size(), 0);
   for (std::size_t r = 0; r < node_rows_.size(); ++r)
@@ -280,6 +375,20 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
       planes_[k].line_end = lines_.size();
     }
   }
+  // The intact fast path: nothing is known of the strains or the motion before the first step.
+  // (Without AVX-512 it would take a square root and a division for every bar at each end:
+  // slower than the bar pass, so it is off.)
+  fast_path_ = opt_.intact_at_nodes && !table_.per_bar() && kVectorKernel;
+  row_fast_.assign(bar_rows_.size(), 0);
+  line_fast_.assign(lines_.size(), 0);
+  bar_row_nodes_.resize(bar_rows_.size());
+  for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
+    const BarRow& row = bar_rows_[r];
+    const FamilyInfo& fi = lat_.family(row.family);
+    bar_row_nodes_[r] = {static_cast<std::uint32_t>(node_row_of(fi.a.at(0, row.j, row.k))),
+                         static_cast<std::uint32_t>(node_row_of(fi.b.at(0, row.j, row.k)))};
+  }
+  node_row_motion_.assign(node_rows_.size(), kUnknown);
   threads_ = omp_get_max_threads();
   plane_buffers_.resize(3 * static_cast<std::size_t>(threads_));
   for (auto& b : plane_buffers_)
@@ -305,7 +414,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   scratch_stride_ = round_up_to_line(lat_.nx() + 1ull);
   thread_scratch_.resize(static_cast<std::size_t>(threads_));
   for (auto& sc : thread_scratch_)
-    sc.resize(7 * scratch_stride_);
+    sc.resize(8 * scratch_stride_);
   energy_rows_u_.assign(bar_rows_.size(), 0.0);
   energy_rows_d_.assign(bar_rows_.size(), 0.0);
   law_rows_.reserve(bar_rows_.size());
@@ -332,6 +441,7 @@ void Simulation::set_velocity(const std::function<Vec3(Vec3)>& v_of_X) {
 // intact rows skip reading the history.
 void Simulation::mark_damaged_rows() {
   row_damaged_.assign(bar_rows_.size(), 0);
+  row_ratio_.assign(bar_rows_.size(), kUnknown);
   row_dissipated_.assign(bar_rows_.size(), 0.0);
   row_history_changed_.assign(bar_rows_.size(), 1); // the histories may all be new
   for (std::size_t r = 0; r < bar_rows_.size(); ++r) {
@@ -385,7 +495,20 @@ void Simulation::set_half_step_velocity(index_t node, Vec3 v) {
   wz_[q] = uz_[q] - dt_ * v.z;
 }
 
+std::size_t Simulation::node_row_of(index_t node) const {
+  const NodeAddress a = lat_.node_address(node);
+  // Line (j, k) holds its corner row, then its centre row if it has one.
+  return lines_[a.j + (lat_.ny() + 1ull) * a.k].node_begin + (a.centre ? 1 : 0);
+}
+
+void Simulation::forget_motion(index_t first, index_t count) {
+  for_each_run(first, count, [&](std::size_t, index_t n0, index_t) {
+    node_row_motion_[node_row_of(n0)] = kUnknown;
+  });
+}
+
 void Simulation::set_displacement(index_t node, Vec3 u) {
+  forget_motion(node, 1);
   const Vec3 v = half_step_velocity(node);
   const std::size_t q = slot(node);
   ux_[q] = u.x;
@@ -405,6 +528,8 @@ void Simulation::append_displacements(index_t first, index_t count, std::vector<
 
 void Simulation::assign_displacements(index_t first, index_t count, const double* in,
                                       bool previous) {
+  if (!previous)
+    forget_motion(first, count);
   for (AlignedVector<double>* u : {&ux_, &uy_, &uz_, &wx_, &wy_, &wz_})
     if ((u == &wx_ || u == &wy_ || u == &wz_) == previous)
       for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
@@ -485,31 +610,73 @@ bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_ro
   return past > 0;
 }
 
+#if defined(__AVX512F__)
+// 1 / sqrt(x) to about an ulp without the divider: the 14-bit estimate y0, then one step of
+// third order, y = y0 (1 + e/2 + 3e^2/8 + 5e^3/16) with e = 1 - x y0^2: the series of
+// (1 - e)^(-1/2) cut after its e^3 term, |e| < 2^-14 leaving 35 e^4 / 128 < 2^-57 (two Newton
+// steps would take one operation more). The bar pass's intact kernel and the node kernel both
+// take it, so both give the same bits.
+inline __m512d inv_sqrt(__m512d x) {
+  const __m512d y = _mm512_rsqrt14_pd(x);
+  const __m512d e = _mm512_fnmadd_pd(_mm512_mul_pd(x, y), y, _mm512_set1_pd(1.0));
+  const __m512d p =
+      _mm512_fmadd_pd(_mm512_fmadd_pd(_mm512_set1_pd(5.0 / 16.0), e, _mm512_set1_pd(3.0 / 8.0)), e,
+                      _mm512_set1_pd(0.5));
+  return _mm512_fmadd_pd(_mm512_mul_pd(y, e), p, y);
+}
+
+// acc + w (l - l0)^2 for the lanes m of a vector of intact bars, with u the relative
+// displacement (d = d0 + u), l^2 and y = 1 / l as computed for their force, w = end_scale on
+// the lanes `ends` (a bar row's first and last bars) and 1 elsewhere. l - l0 is
+// (l^2 - l0^2) / (l + l0) with l^2 - l0^2 = u . (u + 2 d0): no cancellation, and exactly 0 for
+// an unstrained bar; the reciprocal from the 14-bit estimate and two Newton steps. The bar
+// pass's intact kernel and the node kernel both take it, so both give the same bits.
+inline __m512d add_intact_energy(__m512d acc, __m512d ux, __m512d uy, __m512d uz, Vec3 d0,
+                                 __m512d l2, __m512d y, double l0, __mmask8 m, __mmask8 ends,
+                                 double end_scale) {
+  const __m512d vx = _mm512_set1_pd(d0.x), vy = _mm512_set1_pd(d0.y), vz = _mm512_set1_pd(d0.z);
+  const __m512d v2 = _mm512_set1_pd(2.0);
+  const __m512d q =
+      _mm512_fmadd_pd(ux, _mm512_add_pd(ux, _mm512_add_pd(vx, vx)),
+                      _mm512_fmadd_pd(uy, _mm512_add_pd(uy, _mm512_add_pd(vy, vy)),
+                                      _mm512_mul_pd(uz, _mm512_add_pd(uz, _mm512_add_pd(vz, vz)))));
+  const __m512d den = _mm512_fmadd_pd(l2, y, _mm512_set1_pd(l0));
+  __m512d rc = _mm512_rcp14_pd(den);
+  rc = _mm512_mul_pd(rc, _mm512_fnmadd_pd(den, rc, v2));
+  rc = _mm512_mul_pd(rc, _mm512_fnmadd_pd(den, rc, v2));
+  const __m512d dl = _mm512_maskz_mul_pd(m, q, rc);
+  const __m512d w = _mm512_mask_blend_pd(ends, _mm512_set1_pd(1.0), _mm512_set1_pd(end_scale));
+  return _mm512_fmadd_pd(_mm512_mul_pd(w, dl), dl, acc);
+}
+#endif
+
 // The common case: a row of intact bars with uniform constants, none past e_p. Then
 // s = k (l - l0) / l = k - k l0 / l, and the test e > e_p is l^2 > (l0 (1 + e_p))^2, so the
-// row needs 1 / sqrt(l^2) and nothing else: with AVX-512 it comes from the 14-bit estimate
-// refined by two Newton steps (relative error ~1e-16, the rounding of l itself), which keeps
+// row needs 1 / sqrt(l^2) and nothing else: with AVX-512 it comes from inv_sqrt, which keeps
 // the divider free. Returns true if some bar may be past e_p (the caller then redoes the row
 // with the general kernel). With `Energy`, also sum w (l - l0)^2 over the row into *energy,
 // w = 1 for inner bars and `end_scale` for the first and last (their area factor over the
 // row's).
 #pragma GCC diagnostic push
-// GCC 12's AVX-512 headers trip this warning on _mm512_maskz_loadu_pd, _mm512_rsqrt14_pd and
-// _mm512_rcp14_pd (a known false alarm: their unused pass-through operand).
+// GCC 12's AVX-512 headers trip these warnings on _mm512_maskz_loadu_pd, _mm512_rsqrt14_pd,
+// _mm512_rcp14_pd and _mm512_reduce_max_pd (a known false alarm: their unused pass-through
+// operand).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
+// (Inlined where it is called: GCC 12 does not vectorise the portable loop's reductions in a
+// copy of its own.)
 template <bool Energy>
-bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p,
-                       double end_scale, double* energy) {
+[[gnu::always_inline]] inline bool
+intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p,
+                  double end_scale, double* energy, double& l2_max) {
   // Slightly below the exact threshold, so that a bar at e_p to within rounding is handed to
   // the general kernel, whose strain test is the reference.
   const double lp2 = l0 * l0 * (1.0 + e_p) * (1.0 + e_p) * (1.0 - 1e-12);
 #if defined(__AVX512F__)
   const __m512d vx = _mm512_set1_pd(d0.x), vy = _mm512_set1_pd(d0.y), vz = _mm512_set1_pd(d0.z);
   const __m512d vk = _mm512_set1_pd(k), vkl0 = _mm512_set1_pd(k * l0);
-  const __m512d vlp2 = _mm512_set1_pd(lp2), v15 = _mm512_set1_pd(1.5), v05 = _mm512_set1_pd(0.5);
-  const __m512d vl0 = _mm512_set1_pd(l0), vend = _mm512_set1_pd(end_scale),
-                v2 = _mm512_set1_pd(2.0);
-  __m512d acc = _mm512_setzero_pd();
+  const __m512d vlp2 = _mm512_set1_pd(lp2);
+  __m512d acc = _mm512_setzero_pd(), top = _mm512_setzero_pd();
   __mmask8 past = 0;
   // Whole vectors with plain loads and stores, the row's tail (n not a multiple of 8) masked.
   const auto vector = [&]<bool Tail>(index_t i, __mmask8 m) {
@@ -522,39 +689,25 @@ bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k
     const __m512d dx = _mm512_add_pd(vx, ux), dy = _mm512_add_pd(vy, uy),
                   dz = _mm512_add_pd(vz, uz);
     const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
-    const __m512d h = _mm512_mul_pd(v05, l2);
-    __m512d y = _mm512_rsqrt14_pd(l2);
-    y = _mm512_mul_pd(y, _mm512_fnmadd_pd(_mm512_mul_pd(h, y), y, v15));
-    y = _mm512_mul_pd(y, _mm512_fnmadd_pd(_mm512_mul_pd(h, y), y, v15));
+    const __m512d y = inv_sqrt(l2);
     const __m512d s = _mm512_fnmadd_pd(vkl0, y, vk);
     if constexpr (Tail) {
       _mm512_mask_storeu_pd(r.s + i, m, s);
       past |= _mm512_mask_cmp_pd_mask(m, l2, vlp2, _CMP_GT_OQ);
+      top = _mm512_mask_max_pd(top, m, top, l2);
     } else {
       _mm512_storeu_pd(r.s + i, s);
       past |= _mm512_cmp_pd_mask(l2, vlp2, _CMP_GT_OQ);
+      top = _mm512_max_pd(top, l2);
     }
     if constexpr (Energy) {
-      // dl = l - l0 = (l^2 - l0^2) / (l + l0), with l^2 - l0^2 = u . (u + 2 d0) from the
-      // relative displacement u: no cancellation, and exactly 0 for an unstrained bar. The
-      // reciprocal from the 14-bit estimate and two Newton steps. Zero beyond the row's end,
-      // weighted at its ends.
-      const __m512d q = _mm512_fmadd_pd(
-          ux, _mm512_add_pd(ux, _mm512_add_pd(vx, vx)),
-          _mm512_fmadd_pd(uy, _mm512_add_pd(uy, _mm512_add_pd(vy, vy)),
-                          _mm512_mul_pd(uz, _mm512_add_pd(uz, _mm512_add_pd(vz, vz)))));
-      const __m512d den = _mm512_fmadd_pd(l2, y, vl0);
-      __m512d rc = _mm512_rcp14_pd(den);
-      rc = _mm512_mul_pd(rc, _mm512_fnmadd_pd(den, rc, v2));
-      rc = _mm512_mul_pd(rc, _mm512_fnmadd_pd(den, rc, v2));
-      const __m512d dl = _mm512_maskz_mul_pd(m, q, rc);
+      // Zero beyond the row's end, weighted at its ends.
       __mmask8 ends = 0;
       if (i == 0)
         ends |= 1;
       if (n - 1 - i < 8)
         ends |= static_cast<__mmask8>(1u << (n - 1 - i));
-      const __m512d w = _mm512_mask_blend_pd(ends, _mm512_set1_pd(1.0), vend);
-      acc = _mm512_fmadd_pd(_mm512_mul_pd(w, dl), dl, acc);
+      acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, m, ends, end_scale);
     }
   };
   index_t i = 0;
@@ -564,49 +717,98 @@ bool intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k
     vector.template operator()<true>(i, static_cast<__mmask8>((1u << (n - i)) - 1u));
   if constexpr (Energy)
     *energy = _mm512_reduce_add_pd(acc);
+  l2_max = _mm512_reduce_max_pd(top);
   return past != 0;
 #else
   int past = 0;
   double sum = 0.0;
-#pragma omp simd reduction(+ : past, sum)
-  for (index_t i = 0; i < n; ++i) {
+  // bar(i) gives 1 if bar i is past e_p, and with Energy its term of the sum; the loops name
+  // only the reductions they have (GCC 12 vectorises neither with one that stays unused).
+  struct Term {
+    int past;
+    double energy;
+  };
+  const auto bar = [&](index_t i) {
     const double ux = r.ubx[i] - r.uax[i], uy = r.uby[i] - r.uay[i], uz = r.ubz[i] - r.uaz[i];
     const double dx = d0.x + ux, dy = d0.y + uy, dz = d0.z + uz;
     const double l2 = dx * dx + dy * dy + dz * dz;
     const double l = std::sqrt(l2);
     r.s[i] = k - k * l0 / l;
-    past += l2 > lp2 ? 1 : 0;
+    Term t{l2 > lp2 ? 1 : 0, 0.0};
     if constexpr (Energy) { // as above
       const double dl =
           (ux * (ux + 2 * d0.x) + uy * (uy + 2 * d0.y) + uz * (uz + 2 * d0.z)) / (l + l0);
-      sum += (i == 0 || i + 1 == n ? end_scale : 1.0) * dl * dl;
+      t.energy = (i == 0 || i + 1 == n ? end_scale : 1.0) * dl * dl;
     }
-  }
-  if constexpr (Energy)
+    return t;
+  };
+  if constexpr (Energy) {
+#pragma omp simd reduction(+ : past, sum)
+    for (index_t i = 0; i < n; ++i) {
+      const Term t = bar(i);
+      past += t.past;
+      sum += t.energy;
+    }
     *energy = sum;
+  } else {
+#pragma omp simd reduction(+ : past)
+    for (index_t i = 0; i < n; ++i)
+      past += bar(i).past;
+  }
+  l2_max = std::numeric_limits<double>::infinity(); // (the fast path is off: kVectorKernel)
   return past > 0;
 #endif
 }
 
-bool intact_row_forces(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p) {
-  return intact_row_kernel<false>(n, r, d0, l0, k, e_p, 1.0, nullptr);
+[[gnu::always_inline]] inline bool intact_row_forces(index_t n, const RowView& r, Vec3 d0,
+                                                     double l0, double k, double e_p,
+                                                     double& l2_max) {
+  return intact_row_kernel<false>(n, r, d0, l0, k, e_p, 1.0, nullptr, l2_max);
 }
-bool intact_row_forces_energy(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_p,
-                              double end_scale, double* energy) {
-  return intact_row_kernel<true>(n, r, d0, l0, k, e_p, end_scale, energy);
+[[gnu::always_inline]] inline bool intact_row_forces_energy(index_t n, const RowView& r, Vec3 d0,
+                                                            double l0, double k, double e_p,
+                                                            double end_scale, double* energy,
+                                                            double& l2_max) {
+  return intact_row_kernel<true>(n, r, d0, l0, k, e_p, end_scale, energy, l2_max);
 }
 
 } // namespace
 
-void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, bool energies) {
+// A bar's length after this step's motion is at most its length now plus the motion of its
+// two nodes: l_{n+1} <= l_n + |u_{n+1} - u_n|_a + |u_{n+1} - u_n|_b. At the start of step n+1
+// the row knows the largest (l_n / l_p)^2 of its bars (row_ratio_, measured by whichever pass
+// computed them at step n) and its node rows' largest motion in step n (node_row_motion_), so
+// if sqrt(ratio) + (motion_a + motion_b) / l_p stays below 1 no bar of the row can pass e_p,
+// and the intact law alone gives its force. The margin of 1e-9 covers the rounding of those
+// sums (a few units of 1e-16) and keeps the bars clear of the intact kernel's own threshold,
+// l_p^2 (1 - 1e-12). An unknown ratio or motion is infinite, which fails the test.
+bool Simulation::bar_row_stays_intact(std::size_t r) const {
+  constexpr double kMargin = 1.0 - 1e-9;
+  const auto [a, b] = bar_row_nodes_[r];
+  // sqrt(ratio) + m <= margin, in squares (m <= margin first, which also fails on a NaN).
+  const double m = (node_row_motion_[a] + node_row_motion_[b]) * row_inv_lp_[r];
+  return !row_damaged_[r] && m <= kMargin && row_ratio_[r] <= (kMargin - m) * (kMargin - m);
+}
+
+void Simulation::bar_rows(std::size_t line, double* s_plane, bool energies) {
+  const std::size_t begin = lines_[line].bar_begin, end = lines_[line].bar_end;
   const bool per_bar = table_.per_bar();
   const double* kb = per_bar ? table_.k_bar().data() : nullptr;
   const double* epb = per_bar ? table_.e_p_bar().data() : nullptr;
   const double* erb = per_bar ? table_.e_r_bar().data() : nullptr;
   const std::uint64_t step = step_;
+  const bool fast = fast_path_;
   {
     std::vector<Event>& events = thread_events_[static_cast<std::size_t>(omp_get_thread_num())];
+    bool all_fast = true;
     for (std::size_t r = begin; r < end; ++r) {
+      row_fast_[r] = fast && bar_row_stays_intact(r);
+      all_fast = all_fast && row_fast_[r];
+    }
+    line_fast_[line] = all_fast;
+    for (std::size_t r = begin; r < end; ++r) {
+      if (row_fast_[r])
+        continue;
       const BarRow& row = bar_rows_[r];
       const FamilyInfo& fi = lat_.family(row.family);
       const FamilyMaterial& mat = table_.family(row.family);
@@ -644,9 +846,11 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
       if (per_bar) {
         past = intact ? general(yes{}, yes{}) : general(yes{}, no{});
       } else {
+        double l2_max = kUnknown;
         past = intact && (energies ? intact_row_forces_energy(n, v, fi.d0, fi.l0, k, mat.e_p, scale,
-                                                              &intact_sum)
-                                   : intact_row_forces(n, v, fi.d0, fi.l0, k, mat.e_p));
+                                                              &intact_sum, l2_max)
+                                   : intact_row_forces(n, v, fi.d0, fi.l0, k, mat.e_p, l2_max));
+        row_ratio_[r] = l2_max * (row_inv_lp_[r] * row_inv_lp_[r]);
         by_law = !intact || past;
         if (by_law)
           past = general(no{}, no{});
@@ -690,86 +894,276 @@ void Simulation::bar_rows(std::size_t begin, std::size_t end, double* s_plane, b
 
 namespace {
 
-// Links [B, E) of a row's fused gather into the running sums (fx, fy, fz, fs): the first
-// chunk starts them, the last one turns them into forces. Chunks of a few links keep their
-// pointers in registers; one pass over all 14 needs 56 and reloads them from the stack.
+// What the node kernel reads and writes besides the links: every node's u_n (by slot), the
+// row's own, the row's forces (scratch rows, when the kernel does not integrate), and for the
+// node update in the kernel u_{n-1} (overwritten by u_{n+1}), 1 / m, the held DOF and the
+// integration's constants.
+struct NodeRowArgs {
+  const double *ux_all, *uy_all, *uz_all, *ux, *uy, *uz;
+  double *fx, *fy, *fz, *wx, *wy, *wz;
+  const double* im;
+  const DofMask* held;
+  double dt, c1, c2, inv_dt;
+  double* fs; // one more scratch row (the portable kernel's running sums of s)
+};
+
+// The links of a row that mix the two ways: per link, whether it is fast and, if not, where the
+// bar pass put its bars' forces.
+struct MixedLinks {
+  const double* s[kMaxRowLinks];
+  bool fast[kMaxRowLinks];
+};
+
+// The forces on the nodes [0, n) of a row: f_i = sum over the links, in link order, of
+// s (r0 + (u_other - u_i)). Without Integrate they go to the scratch rows fx, fy, fz for i in
+// [0, n rounded up to 8). Returns whether some fast link's bar whose first node is the row's
+// is longer than its watch length.
+//
+// A fast link (all of them with AllFast, else those `mixed` marks) computes s with the
+// operations of the bar pass's intact kernel; the others read it from the bar pass's buffer.
+// From a bar's second node the relative displacement and the reference vector are exactly
+// minus those from its first (a difference and a sum negate exactly), so l^2 and s are the
+// same bits at both ends, and the same as the bar pass would have written to the buffer: every
+// force sum is the same bits whichever way each link is taken. Vectors of 8 nodes inside
+// [lo, hi) have every link on every lane and no end bar to scale; the others mask their lanes.
+#if defined(__AVX512F__)
+#pragma GCC diagnostic push
+// GCC 12's AVX-512 headers: the same false alarms as at intact_row_kernel, here also as
+// -Wuninitialized (_mm512_setzero_pd, _mm512_maskz_mov_pd).
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
+template <int NL, bool AllFast, bool Edge, bool Integrate, bool Held, bool Energy>
+inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
+                        const EdgeLanes* lanes, std::int64_t i, const NodeRowArgs& a, __mmask8& hot,
+                        __m512d& moved, __m512d* energy) {
+  const __m512d ax = _mm512_load_pd(a.ux + i), ay = _mm512_load_pd(a.uy + i),
+                az = _mm512_load_pd(a.uz + i);
+  __m512d gx = _mm512_setzero_pd(), gy = _mm512_setzero_pd(), gz = _mm512_setzero_pd();
+#pragma GCC unroll 14
+  for (int l = 0; l < NL; ++l) {
+    const LinkConst& L = c[l];
+    const __mmask8 m = Edge ? lanes[l].has : 0xFF;
+    const auto load = [m](const double* p) {
+      return Edge ? _mm512_maskz_loadu_pd(m, p) : _mm512_loadu_pd(p);
+    };
+    const std::int64_t o = ref[l].other + i;
+    const __m512d ux = _mm512_sub_pd(load(a.ux_all + o), ax),
+                  uy = _mm512_sub_pd(load(a.uy_all + o), ay),
+                  uz = _mm512_sub_pd(load(a.uz_all + o), az);
+    const __m512d dx = _mm512_add_pd(_mm512_set1_pd(L.rx), ux),
+                  dy = _mm512_add_pd(_mm512_set1_pd(L.ry), uy),
+                  dz = _mm512_add_pd(_mm512_set1_pd(L.rz), uz);
+    __m512d s;
+    if (AllFast || mixed->fast[l]) {
+      // As intact_row_kernel: s = k - k l0 / l.
+      const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
+      const __m512d y = inv_sqrt(l2);
+      s = _mm512_fnmadd_pd(_mm512_set1_pd(L.kl0), y, _mm512_set1_pd(L.k));
+      // A report step's elastic energy of the bars whose first nodes are the row's, as the
+      // intact kernel sums it: the same vectors of the same bar row, from u = u_b - u_a.
+      if constexpr (Energy)
+        if (L.first_node)
+          energy[l] = add_intact_energy(energy[l], ux, uy, uz, Vec3{L.rx, L.ry, L.rz}, l2, y, L.l0,
+                                        m, Edge ? lanes[l].first | lanes[l].last : 0, L.scale);
+      if constexpr (Edge) {
+        // The bar row's first and last bars (node i = ilo and ihi - 1) carry their own factor.
+        const __m512d sc = _mm512_set1_pd(L.scale);
+        s = _mm512_mask_mul_pd(s, lanes[l].first, s, sc);
+        s = _mm512_mask_mul_pd(s, lanes[l].last, s, sc);
+        s = _mm512_maskz_mov_pd(m, s);
+        if (L.first_node)
+          hot |= _mm512_mask_cmp_pd_mask(m, l2, _mm512_set1_pd(L.lw2), _CMP_GT_OQ);
+      } else if (L.first_node) {
+        hot |= _mm512_cmp_pd_mask(l2, _mm512_set1_pd(L.lw2), _CMP_GT_OQ);
+      }
+    } else {
+      s = load(mixed->s[l] + i);
+    }
+    gx = _mm512_fmadd_pd(s, dx, gx);
+    gy = _mm512_fmadd_pd(s, dy, gy);
+    gz = _mm512_fmadd_pd(s, dz, gz);
+  }
+  if constexpr (Integrate) {
+    // integrate_row's update without damping, loads or sums, with its operations in its order.
+    const __m512d im = _mm512_load_pd(a.im + i);
+    const __m512d inv_dt = _mm512_set1_pd(a.inv_dt), c1 = _mm512_set1_pd(a.c1),
+                  c2 = _mm512_set1_pd(a.c2), dt = _mm512_set1_pd(a.dt);
+    __m512i bits = _mm512_setzero_si512();
+    if constexpr (Held)
+      bits = _mm512_cvtepu8_epi64(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(a.held + i)));
+    const auto update = [&](double* w, __m512d u, __m512d g, long long dof) {
+      const __m512d o = _mm512_mul_pd(_mm512_sub_pd(u, _mm512_load_pd(w + i)), inv_dt);
+      __m512d v = _mm512_add_pd(_mm512_mul_pd(c1, o), _mm512_mul_pd(_mm512_mul_pd(c2, g), im));
+      if constexpr (Held) {
+        const __mmask8 free = _mm512_testn_epi64_mask(bits, _mm512_set1_epi64(dof));
+        v = _mm512_mul_pd(_mm512_mask_blend_pd(free, _mm512_setzero_pd(), _mm512_set1_pd(1.0)), v);
+      }
+      const __m512d e = _mm512_add_pd(u, _mm512_mul_pd(dt, v));
+      _mm512_store_pd(w + i, e);
+      return _mm512_sub_pd(e, u);
+    };
+    const __m512d qx = update(a.wx, ax, gx, kDofX), qy = update(a.wy, ay, gy, kDofY),
+                  qz = update(a.wz, az, gz, kDofZ);
+    moved = _mm512_max_pd(moved,
+                          _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(qx, qx), _mm512_mul_pd(qy, qy)),
+                                        _mm512_mul_pd(qz, qz)));
+  } else {
+    _mm512_store_pd(a.fx + i, gx);
+    _mm512_store_pd(a.fy + i, gy);
+    _mm512_store_pd(a.fz + i, gz);
+  }
+}
+
+// With Integrate, the row's u_{n+1} too (into w) and its largest motion |u_{n+1} - u_n|^2
+// into `moved` (the spare slots of the row hold zeros, and move by 0).
+// With Energy, also the sum over the row of w (l - l0)^2 of each fast link's bars whose first
+// nodes are the row's, into energy[l] (see add_intact_energy).
+template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy>
+bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
+                     const EdgeLanes* lanes, std::int64_t n, std::int64_t lo, std::int64_t hi,
+                     const NodeRowArgs& a, double& moved, double* energy) {
+  __mmask8 hot = 0;
+  __m512d q = _mm512_setzero_pd();
+  __m512d sums[NL];
+  if constexpr (Energy)
+    for (int l = 0; l < NL; ++l)
+      sums[l] = _mm512_setzero_pd();
+  for (std::int64_t i = 0; i < n; i += 8) {
+    if (i >= lo && i + 8 <= hi) {
+      node_vector<NL, AllFast, false, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a, hot, q,
+                                                               sums);
+    } else {
+      node_vector<NL, AllFast, true, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a, hot, q,
+                                                              sums);
+      lanes += kMaxRowLinks;
+    }
+  }
+  if constexpr (Energy)
+    for (int l = 0; l < NL; ++l)
+      energy[l] = _mm512_reduce_add_pd(sums[l]);
+  moved = _mm512_reduce_max_pd(q);
+  return hot != 0;
+}
+#pragma GCC diagnostic pop
+#else
+// Without AVX-512 (where the fast path is off: SolverOptions::intact_at_nodes). Inside
+// [lo, hi), where every node has every link, the links in chunks of four over the whole range
+// (GCC vectorises each chunk; a single pass over 14 links would need more pointers than there
+// are registers), as sum s (r0 + u_other) - u_i sum s, two operations fewer per link than the
+// sum of s (r0 + (u_other - u_i)) taken link by link outside it. A fast link, should one be
+// asked for, computes s as the portable intact kernel does, and makes the row go link by link.
+// The node update is integrate_row's.
 template <int B, int E, bool First, bool Last>
-void gather_chunk(const double* const* sb, const double* const* ox, const double* const* oy,
-                  const double* const* oz, const double* rx, const double* ry, const double* rz,
-                  index_t ilo, index_t ihi, const double* __restrict ux,
-                  const double* __restrict uy, const double* __restrict uz, double* __restrict fx,
-                  double* __restrict fy, double* __restrict fz, double* __restrict fs) {
+void portable_chunk(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
+                    std::int64_t lo, std::int64_t hi, const NodeRowArgs& a, double* fs) {
   constexpr int N = E - B;
   const double *s_[N], *x_[N], *y_[N], *z_[N];
   double rx_[N], ry_[N], rz_[N];
   for (int l = 0; l < N; ++l) {
-    s_[l] = sb[B + l];
-    x_[l] = ox[B + l];
-    y_[l] = oy[B + l];
-    z_[l] = oz[B + l];
-    rx_[l] = rx[B + l];
-    ry_[l] = ry[B + l];
-    rz_[l] = rz[B + l];
+    s_[l] = mixed->s[B + l];
+    x_[l] = a.ux_all + ref[B + l].other;
+    y_[l] = a.uy_all + ref[B + l].other;
+    z_[l] = a.uz_all + ref[B + l].other;
+    rx_[l] = c[B + l].rx;
+    ry_[l] = c[B + l].ry;
+    rz_[l] = c[B + l].rz;
   }
+  double* __restrict fx = a.fx;
+  double* __restrict fy = a.fy;
+  double* __restrict fz = a.fz;
+  const double* __restrict ux = a.ux;
+  const double* __restrict uy = a.uy;
+  const double* __restrict uz = a.uz;
 #pragma omp simd
-  for (index_t i = ilo; i < ihi; ++i) {
-    double ax = First ? 0.0 : fx[i], ay = First ? 0.0 : fy[i], az = First ? 0.0 : fz[i],
+  for (std::int64_t i = lo; i < hi; ++i) {
+    double gx = First ? 0.0 : fx[i], gy = First ? 0.0 : fy[i], gz = First ? 0.0 : fz[i],
            st = First ? 0.0 : fs[i];
-#pragma GCC unroll 14
+#pragma GCC unroll 4
     for (int l = 0; l < N; ++l) {
       const double t = s_[l][i];
-      ax += t * (rx_[l] + x_[l][i]);
-      ay += t * (ry_[l] + y_[l][i]);
-      az += t * (rz_[l] + z_[l][i]);
+      gx += t * (rx_[l] + x_[l][i]);
+      gy += t * (ry_[l] + y_[l][i]);
+      gz += t * (rz_[l] + z_[l][i]);
       st += t;
     }
     if constexpr (Last) {
-      fx[i] = ax - st * ux[i];
-      fy[i] = ay - st * uy[i];
-      fz[i] = az - st * uz[i];
+      fx[i] = gx - st * ux[i];
+      fy[i] = gy - st * uy[i];
+      fz[i] = gz - st * uz[i];
     } else {
-      fx[i] = ax;
-      fy[i] = ay;
-      fz[i] = az;
+      fx[i] = gx;
+      fy[i] = gy;
+      fz[i] = gz;
       fs[i] = st;
     }
   }
 }
 
-// f_i = sum over the row's links of s_bar * (r0 + u_other - u_i), for i in [ilo, ihi) where
-// the fused pass applies, in link order, written as sum s (r0 + u_other) - u_i sum s (two
-// fewer operations per link; measured +3 %). The sums run in link order whatever the
-// chunking, so the chunks change no result.
-template <int NL>
-void gather_fused(const RowLink* links, index_t ilo, index_t ihi, const double* s_plane,
-                  const double* s_below, const double* __restrict ux_all,
-                  const double* __restrict uy_all, const double* __restrict uz_all,
-                  const double* __restrict ux, const double* __restrict uy,
-                  const double* __restrict uz, double* __restrict fx, double* __restrict fy,
-                  double* __restrict fz, double* __restrict fs) {
-  const double* sb[NL];
-  const double *ox[NL], *oy[NL], *oz[NL];
-  double rx[NL], ry[NL], rz[NL];
-  for (int l = 0; l < NL; ++l) {
-    sb[l] = (links[l].dk == 0 ? s_plane : s_below) + links[l].plane_base;
-    ox[l] = ux_all + links[l].other_base;
-    oy[l] = uy_all + links[l].other_base;
-    oz[l] = uz_all + links[l].other_base;
-    rx[l] = links[l].r0.x;
-    ry[l] = links[l].r0.y;
-    rz[l] = links[l].r0.z;
+template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy>
+bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
+                     const EdgeLanes*, std::int64_t n, std::int64_t lo, std::int64_t hi,
+                     const NodeRowArgs& a, double&, double*) {
+  static_assert(!Integrate, "the portable kernel gives forces only");
+  bool any_fast = AllFast;
+  for (int l = 0; l < NL; ++l)
+    any_fast = any_fast || mixed->fast[l];
+  if (any_fast)
+    lo = hi = 0;
+  if (hi > lo) {
+    constexpr int C = 4;
+    auto chunk = [&]<int B>(auto self, std::integral_constant<int, B>) {
+      constexpr int E = B + C < NL ? B + C : NL;
+      portable_chunk<B, E, B == 0, E == NL>(c, ref, mixed, lo, hi, a, a.fs);
+      if constexpr (E < NL)
+        self(self, std::integral_constant<int, E>{});
+    };
+    chunk(chunk, std::integral_constant<int, 0>{});
   }
-  // Links per chunk (measured on 64^3: 2 to 7 alike, all 14 in one pass 10 % slower).
-  constexpr int C = 4;
-  auto chunk = [&]<int B>(auto self, std::integral_constant<int, B>) {
-    constexpr int E = B + C < NL ? B + C : NL;
-    gather_chunk<B, E, B == 0, E == NL>(sb, ox, oy, oz, rx, ry, rz, ilo, ihi, ux, uy, uz, fx, fy,
-                                        fz, fs);
-    if constexpr (E < NL)
-      self(self, std::integral_constant<int, E>{});
-  };
-  chunk(chunk, std::integral_constant<int, 0>{});
+  double* __restrict fx = a.fx;
+  double* __restrict fy = a.fy;
+  double* __restrict fz = a.fz;
+  const double* __restrict ux = a.ux;
+  const double* __restrict uy = a.uy;
+  const double* __restrict uz = a.uz;
+  for (const auto& [e0, e1] : {std::pair{std::int64_t{0}, lo}, std::pair{hi, n}})
+    for (std::int64_t i = e0; i < e1; ++i)
+      fx[i] = fy[i] = fz[i] = 0.0;
+  int hot = 0;
+  for (int l = 0; l < NL; ++l) {
+    const LinkConst& L = c[l];
+    const double* __restrict ox = a.ux_all + ref[l].other;
+    const double* __restrict oy = a.uy_all + ref[l].other;
+    const double* __restrict oz = a.uz_all + ref[l].other;
+    const bool fast = AllFast || mixed->fast[l];
+    const double* __restrict sb = fast ? nullptr : mixed->s[l];
+    for (const auto& [e0, e1] :
+         {std::pair{L.ilo, std::min(L.ihi, lo)}, std::pair{std::max(L.ilo, hi), L.ihi}}) {
+#pragma omp simd reduction(+ : hot)
+      for (std::int64_t i = e0; i < e1; ++i) {
+        const double dx = L.rx + (ox[i] - ux[i]), dy = L.ry + (oy[i] - uy[i]),
+                     dz = L.rz + (oz[i] - uz[i]);
+        double s;
+        if (fast) {
+          const double l2 = dx * dx + dy * dy + dz * dz;
+          s = L.k - L.kl0 / std::sqrt(l2);
+          if (i == L.ilo)
+            s *= L.scale;
+          if (i == L.ihi - 1)
+            s *= L.scale;
+          if (L.first_node)
+            hot += l2 > L.lw2 ? 1 : 0;
+        } else {
+          s = sb[i];
+        }
+        fx[i] += s * dx;
+        fy[i] += s * dy;
+        fz[i] += s * dz;
+      }
+    }
+  }
+  return hot > 0;
 }
+#endif
 
 } // namespace
 
@@ -785,16 +1179,17 @@ struct IntegrationConstants {
 // v_{n+1/2} and u_{n+1} of one row of nodes from the gathered forces, and (with Sums) the
 // row's contributions to the energy ledger. A separate function so that every array is a
 // __restrict parameter: GCC then vectorises the loop.
-template <bool Damped, bool Loads, bool Report, bool Held>
-inline void
-integrate_row(index_t n, const IntegrationConstants& c, const double* __restrict free_x,
-              const double* __restrict free_y, const double* __restrict free_z,
-              const double* __restrict im, const double* __restrict m, double* __restrict fx,
-              double* __restrict fy, double* __restrict fz, double* __restrict fw,
-              const double* __restrict px, const double* __restrict py, const double* __restrict pz,
-              const double* __restrict ux, const double* __restrict uy, const double* __restrict uz,
-              double* __restrict wx, double* __restrict wy, double* __restrict wz, double& damping,
-              double& load_mid, double& load_half, double& kinetic) {
+template <bool Damped, bool Loads, bool Report, bool Held, bool Motion>
+inline void integrate_row(index_t n, const IntegrationConstants& c, const double* __restrict free_x,
+                          const double* __restrict free_y, const double* __restrict free_z,
+                          const double* __restrict im, const double* __restrict m,
+                          double* __restrict fx, double* __restrict fy, double* __restrict fz,
+                          double* __restrict fw, const double* __restrict px,
+                          const double* __restrict py, const double* __restrict pz,
+                          const double* __restrict ux, const double* __restrict uy,
+                          const double* __restrict uz, double* __restrict wx, double* __restrict wy,
+                          double* __restrict wz, double* __restrict fd, double& damping,
+                          double& load_mid, double& load_half, double& kinetic, double& motion) {
   const double dt = c.dt, c1 = c.c1, c2 = c.c2, alpha = c.alpha, inv_dt = 1.0 / c.dt;
   constexpr bool sums = Damped || Loads || Report;
   // No reduction clause: with one, GCC 12 does not vectorise the loop. The per-node terms of
@@ -814,9 +1209,15 @@ integrate_row(index_t n, const IntegrationConstants& c, const double* __restrict
     const double nx = kx * (c1 * ox + c2 * gx * im[i]);
     const double ny = ky * (c1 * oy + c2 * gy * im[i]);
     const double nz = kz * (c1 * oz + c2 * gz * im[i]);
-    wx[i] = ux[i] + dt * nx;
-    wy[i] = uy[i] + dt * ny;
-    wz[i] = uz[i] + dt * nz;
+    const double ex = ux[i] + dt * nx, ey = uy[i] + dt * ny, ez = uz[i] + dt * nz;
+    wx[i] = ex;
+    wy[i] = ey;
+    wz[i] = ez;
+    if constexpr (Motion) {
+      // The node's motion in this step, |u_{n+1} - u_n|^2 (bar_row_stays_intact).
+      const double qx = ex - ux[i], qy = ey - uy[i], qz = ez - uz[i];
+      fd[i] = qx * qx + qy * qy + qz * qz;
+    }
     if constexpr (sums) {
       // Mid-step velocity v_n = (v_{n-1/2} + v_{n+1/2}) / 2 of the free DOF.
       const double mx = 0.5 * kx * (ox + nx), my = 0.5 * ky * (oy + ny), mz = 0.5 * kz * (oz + nz);
@@ -829,6 +1230,13 @@ integrate_row(index_t n, const IntegrationConstants& c, const double* __restrict
       fw[i] =
           Report && Loads ? 0.5 * dt * (kx * px[i] * ox + ky * py[i] * oy + kz * pz[i] * oz) : 0.0;
     }
+  }
+  if constexpr (Motion) {
+    double top = 0.0;
+#pragma omp simd reduction(max : top)
+    for (index_t i = 0; i < n; ++i)
+      top = std::max(top, fd[i]);
+    motion = std::sqrt(top);
   }
   // Each sum in node order, and only those that are not zero by the template's terms.
   damping = load_mid = load_half = kinetic = 0.0;
@@ -848,9 +1256,21 @@ integrate_row(index_t n, const IntegrationConstants& c, const double* __restrict
 
 } // namespace
 
+// (The node kernel is inlined here: GCC 12's AVX-512 headers' false alarms again, see
+// node_vector.)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
 template <bool Damped, bool Loads, bool Report>
-void Simulation::node_rows_range(std::size_t begin, std::size_t end, const double* s_plane,
-                                 const double* s_below) {
+void Simulation::node_rows_range(std::size_t line, const double* s_plane, const double* s_below) {
+  const std::size_t begin = lines_[line].node_begin, end = lines_[line].node_end;
+  // The lines whose bars the line's nodes end: (j, k), (j - 1, k), and the same in plane k - 1.
+  const std::size_t per_plane = lat_.ny() + 1ull;
+  const std::size_t j = line % per_plane, k = line / per_plane;
+  const bool lines_fast =
+      fast_path_ && line_fast_[line] && (j == 0 || line_fast_[line - 1]) &&
+      (k == 0 || (line_fast_[line - per_plane] && (j == 0 || line_fast_[line - per_plane - 1])));
+  bool hot_row[2] = {false, false}; // corner, centre
   const double dt = dt_;
   const double half = 0.5 * opt_.damping * dt;
   const double c1 = (1.0 - half) / (1.0 + half), c2 = dt / (1.0 + half);
@@ -865,6 +1285,7 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
     double* __restrict free_x = fw + scratch_stride_;
     double* __restrict free_y = free_x + scratch_stride_;
     double* __restrict free_z = free_y + scratch_stride_;
+    double* __restrict fd = free_z + scratch_stride_;
     for (std::size_t r = begin; r < end; ++r) {
       const NodeRow& row = node_rows_[r];
       const index_t n = row.length;
@@ -881,63 +1302,93 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
         __builtin_prefetch(wz_.data() + n0 + i, 1);
         __builtin_prefetch(slot_inv_mass_.data() + n0 + i, 0);
       }
-      const RowLink* links = &row_links_[kMaxRowLinks * r];
-      const int nl = row_link_count_[r];
-      // One fused pass over [ilo, ihi) (row_fused_: the whole row but in the first and last
-      // rows), link by link outside it. Which node takes which path depends on the lattice
-      // alone, so the sums do not depend on the threads.
-      auto [ilo, ihi] = row_fused_[r];
-      const auto fused = [&](auto count) {
-        gather_fused<decltype(count)::value>(links, ilo, ihi, s_plane, s_below, ux_.data(),
-                                             uy_.data(), uz_.data(), ux, uy, uz, fx, fy, fz, fw);
-      };
-      switch (nl) { // rows inside a box have 14 links; rows on its faces and edges fewer
-      case 14:
-        fused(std::integral_constant<int, 14>{});
-        break;
-      case 13:
-        fused(std::integral_constant<int, 13>{});
-        break;
-      case 12:
-        fused(std::integral_constant<int, 12>{});
-        break;
-      case 11:
-        fused(std::integral_constant<int, 11>{});
-        break;
-      case 10:
-        fused(std::integral_constant<int, 10>{});
-        break;
-      case 9:
-        fused(std::integral_constant<int, 9>{});
-        break;
-      case 8:
-        fused(std::integral_constant<int, 8>{});
-        break;
-      case 7:
-        fused(std::integral_constant<int, 7>{});
-        break;
-      default:
-        ilo = ihi = 0; // a few links (tiny boxes): link by link
+      const RowKind& kind = row_kinds_[row_kind_[r]];
+      // The portable kernel takes a whole row in one pass where it can (row_whole_).
+      const std::int64_t lo = !kVectorKernel && row_whole_[r] ? 0 : kind.lo;
+      const std::int64_t hi = !kVectorKernel && row_whole_[r] ? std::int64_t{n} : kind.hi;
+      const LinkConst* lc = &link_const_[kMaxRowLinks * row_kind_[r]];
+      const LinkRef* ref = &link_ref_[kMaxRowLinks * r];
+
+      const int nl = kind.links;
+      // Each link fast or from the buffer, as its bar row is in this step. Rows inside a box
+      // have 14 links, rows on its faces and edges fewer; a row with fewer than 7 (in a box a
+      // module or two wide) has links that no node has up to 7, which every lane masks.
+      // (A row's links are all fast when the four lines are, else look link by link.)
+      bool all_fast = nl >= 7 && lines_fast;
+      if (!all_fast && nl >= 7 && fast_path_) {
+        all_fast = true;
+        for (int l = 0; l < nl; ++l)
+          all_fast = all_fast && row_fast_[ref[l].bar_row] != 0;
       }
-      for (const auto& [a, b] : {std::pair{index_t{0}, ilo}, std::pair{ihi, n}})
-        for (index_t i = a; i < b; ++i)
-          fx[i] = fy[i] = fz[i] = 0.0;
-      for (int l = 0; l < nl; ++l) {
-        const RowLink& L = links[l];
-        const double* __restrict s = (L.dk == 0 ? s_plane : s_below) + L.plane_base;
-        const double* __restrict ox = ux_.data() + L.other_base;
-        const double* __restrict oy = uy_.data() + L.other_base;
-        const double* __restrict oz = uz_.data() + L.other_base;
-        const double r0x = L.r0.x, r0y = L.r0.y, r0z = L.r0.z;
-        for (const auto& [a, b] :
-             {std::pair{L.ilo, std::min(L.ihi, ilo)}, std::pair{std::max(L.ilo, ihi), L.ihi}}) {
-#pragma omp simd
-          for (index_t i = a; i < b; ++i) {
-            fx[i] += s[i] * (r0x + (ox[i] - ux[i]));
-            fy[i] += s[i] * (r0y + (oy[i] - uy[i]));
-            fz[i] += s[i] * (r0z + (oz[i] - uz[i]));
-          }
+      MixedLinks mixed;
+      if (!all_fast)
+        for (int l = 0; l < kMaxRowLinks; ++l) {
+          mixed.fast[l] = fast_path_ && l < nl && row_fast_[ref[l].bar_row] != 0;
+          mixed.s[l] = (lc[l].dk == 0 ? s_plane : s_below) + ref[l].plane_base;
         }
+      const int padded = std::max(nl, 7);
+      double* __restrict wx = wx_.data() + n0;
+      double* __restrict wy = wy_.data() + n0;
+      double* __restrict wz = wz_.data() + n0;
+      const double* __restrict im = slot_inv_mass_.data() + n0;
+      const DofMask* __restrict held = slot_held_.data() + n0;
+      const NodeRowArgs args{ux_.data(), uy_.data(), uz_.data(), ux,   uy, uz, fx, fy,       fz, wx,
+                             wy,         wz,         im,         held, dt, c1, c2, 1.0 / dt, fw};
+      // On a plain step without damping or loads the kernel also moves the row's nodes (what
+      // integrate_row would do, the same bits), unless imposed velocities need its forces.
+      const bool in_kernel = kVectorKernel && !Damped && !Loads && !Report && imposed_row_[r] < 0;
+      double motion = 0.0;
+      double energy[kMaxRowLinks];
+      const auto forces = [&](auto count, auto fast, auto integrate, auto held_c) {
+        return node_row_forces < decltype(count)::value, decltype(fast)::value,
+               decltype(integrate)::value, decltype(held_c)::value,
+               Report && kVectorKernel > (lc, ref, &mixed, &edge_lanes_[kind.edge_begin], n, lo, hi,
+                                          args, motion, energy);
+      };
+      const auto by_count = [&](auto... flags) {
+        switch (padded) {
+        case 14:
+          return forces(std::integral_constant<int, 14>{}, flags...);
+        case 13:
+          return forces(std::integral_constant<int, 13>{}, flags...);
+        case 12:
+          return forces(std::integral_constant<int, 12>{}, flags...);
+        case 11:
+          return forces(std::integral_constant<int, 11>{}, flags...);
+        case 10:
+          return forces(std::integral_constant<int, 10>{}, flags...);
+        case 9:
+          return forces(std::integral_constant<int, 9>{}, flags...);
+        case 8:
+          return forces(std::integral_constant<int, 8>{}, flags...);
+        default:
+          return forces(std::integral_constant<int, 7>{}, flags...);
+        }
+      };
+      using yes = std::true_type;
+      using no = std::false_type;
+      bool hot = false;
+      if constexpr (kVectorKernel && !Damped && !Loads && !Report) {
+        if (in_kernel) {
+          if (row_held_[r])
+            hot = all_fast ? by_count(yes{}, yes{}, yes{}) : by_count(no{}, yes{}, yes{});
+          else
+            hot = all_fast ? by_count(yes{}, yes{}, no{}) : by_count(no{}, yes{}, no{});
+        }
+      }
+      if (!in_kernel)
+        hot = all_fast ? by_count(yes{}, no{}, no{}) : by_count(no{}, no{}, no{});
+      // The fast bar rows whose first nodes are this row's: their elastic energy, U = k (l -
+      // l0)^2 / 2 with the area factors in the weights (as bar_rows has it for the others).
+      if constexpr (Report && kVectorKernel)
+        for (int l = 0; l < nl; ++l)
+          if (lc[l].first_node && row_fast_[ref[l].bar_row])
+            energy_rows_u_[ref[l].bar_row] = 0.5 * lc[l].k * energy[l];
+      hot_row[row.centre] = hot;
+      if (in_kernel) {
+        node_row_motion_[r] = std::sqrt(motion);
+        row_damping_[r] = row_load_mid_[r] = row_load_half_[r] = row_kinetic_[r] = 0.0;
+        continue;
       }
       // A row with imposed-velocity nodes keeps its gathered forces for apply_velocities.
       if (const std::int64_t o = imposed_row_[r]; o >= 0) {
@@ -946,48 +1397,58 @@ void Simulation::node_rows_range(std::size_t begin, std::size_t end, const doubl
         std::copy(fy, fy + n, kept + n);
         std::copy(fz, fz + n, kept + 2 * n);
       }
-      double* __restrict wx = wx_.data() + n0;
-      double* __restrict wy = wy_.data() + n0;
-      double* __restrict wz = wz_.data() + n0;
-      const double* __restrict im = slot_inv_mass_.data() + n0;
       const double* __restrict m = slot_mass_.data() + n0;
-      const DofMask* __restrict held = slot_held_.data() + n0;
       const double* __restrict px = Loads ? px_.data() + n0 : nullptr;
       const double* __restrict py = Loads ? py_.data() + n0 : nullptr;
       const double* __restrict pz = Loads ? pz_.data() + n0 : nullptr;
       double damping = 0.0, load_mid = 0.0, load_half = 0.0, kinetic = 0.0;
       const IntegrationConstants ic{dt, c1, c2, alpha};
+      // (The rows' motion only matters to the fast path.)
+      const auto integrate = [&](auto held_c, auto motion_c) {
+        constexpr bool H = decltype(held_c)::value, M = decltype(motion_c)::value;
+        integrate_row<Damped, Loads, Report, H, M>(
+            n, ic, H ? free_x : nullptr, H ? free_y : nullptr, H ? free_z : nullptr, im, m, fx, fy,
+            fz, fw, px, py, pz, ux, uy, uz, wx, wy, wz, fd, damping, load_mid, load_half, kinetic,
+            motion);
+      };
       if (row_held_[r]) {
         for (index_t i = 0; i < n; ++i) {
           free_x[i] = held[i] & kDofX ? 0.0 : 1.0;
           free_y[i] = held[i] & kDofY ? 0.0 : 1.0;
           free_z[i] = held[i] & kDofZ ? 0.0 : 1.0;
         }
-        integrate_row<Damped, Loads, Report, true>(n, ic, free_x, free_y, free_z, im, m, fx, fy, fz,
-                                                   fw, px, py, pz, ux, uy, uz, wx, wy, wz, damping,
-                                                   load_mid, load_half, kinetic);
-      } else
-        integrate_row<Damped, Loads, Report, false>(n, ic, nullptr, nullptr, nullptr, im, m, fx, fy,
-                                                    fz, fw, px, py, pz, ux, uy, uz, wx, wy, wz,
-                                                    damping, load_mid, load_half, kinetic);
+        fast_path_ ? integrate(yes{}, yes{}) : integrate(yes{}, no{});
+      } else {
+        fast_path_ ? integrate(no{}, yes{}) : integrate(no{}, no{});
+      }
+      node_row_motion_[r] = motion; // (apply_velocities adds the imposed DOF's motion)
       row_damping_[r] = damping;
       row_load_mid_[r] = load_mid;
       row_load_half_[r] = load_half;
       row_kinetic_[r] = kinetic;
     }
   }
+  // The line's fast bar rows, whose first nodes are its corner row's (edges) or its centre
+  // row's (the rest): no bar longer than its watch length unless the kernel saw one there.
+  for (std::size_t r = lines_[line].bar_begin; fast_path_ && r < lines_[line].bar_end; ++r)
+    if (row_fast_[r])
+      row_ratio_[r] = hot_row[row_first_centre_[r]] ? kUnknown : row_watch_[r];
 }
+#pragma GCC diagnostic pop
 
 // The bar forces of line l from a plane buffer into a packed store of one line (Pack), or back.
+// Rows whose bars take the fast path this step have no forces in the buffers to move.
 template <bool Pack>
 void Simulation::move_bar_line(std::size_t l, double* plane, double* packed) const {
   for (std::size_t r = lines_[l].bar_begin; r < lines_[l].bar_end; ++r) {
     const FamilyInfo& fi = lat_.family(bar_rows_[r].family);
     double* row = plane + fi.plane_offset + std::size_t{fi.plane_stride} * bar_rows_[r].j;
-    if constexpr (Pack)
-      std::copy(row, row + fi.ni, packed);
-    else
-      std::copy(packed, packed + fi.ni, row);
+    if (!row_fast_[r]) {
+      if constexpr (Pack)
+        std::copy(row, row + fi.ni, packed);
+      else
+        std::copy(packed, packed + fi.ni, row);
+    }
     packed += fi.ni;
   }
 }
@@ -1019,7 +1480,7 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
     const std::int64_t j1 = slabs ? nlines : first(nlines, t + 1);
     const auto line = [&](std::int64_t j, std::int64_t k) { return planes_[k].line_begin + j; };
     const auto bars = [&](std::int64_t j, std::int64_t k, double* s) {
-      bar_rows(lines_[line(j, k)].bar_begin, lines_[line(j, k)].bar_end, s, Report);
+      bar_rows(line(j, k), s, Report);
     };
     const auto ut = static_cast<std::size_t>(t);
     double* const slot[2] = {plane_buffers_[3 * ut].data(), plane_buffers_[3 * ut + 1].data()};
@@ -1069,8 +1530,7 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
             move_bar_line<true>(line(je - 1, k), s_plane, packed(t, kCarry, k));
         }
         for (std::int64_t j = jb; j < je; ++j)
-          node_rows_range<Damped, Loads, Report>(lines_[line(j, k)].node_begin,
-                                                 lines_[line(j, k)].node_end, s_plane, s_below);
+          node_rows_range<Damped, Loads, Report>(line(j, k), s_plane, s_below);
       }
     }
   }
@@ -1079,10 +1539,8 @@ template <bool Damped, bool Loads, bool Report> void Simulation::advance_rows() 
 // Force of its bars on one node at u_n, from the bar law and the history.
 Vec3 Simulation::node_force(index_t node) const {
   const NodeAddress a = lat_.node_address(node);
-  // The node's row: line (j, k) holds its corner row, then its centre row if it has one.
-  const std::size_t r = lines_[a.j + (lat_.ny() + 1ull) * a.k].node_begin + (a.centre ? 1 : 0);
-  const RowLink* links = &row_links_[kMaxRowLinks * r];
-  const int nl = row_link_count_[r];
+  RowLink links[kMaxRowLinks];
+  const int nl = row_links(lat_, node_rows_[node_row_of(node)], links, slots_);
   const std::size_t q = slot(node);
   Vec3 f;
   for (int l = 0; l < nl; ++l) {
@@ -1140,6 +1598,7 @@ void Simulation::apply_velocities(double t, bool report) {
                               imposed_v_old_[c][q].z};
       double* u[3] = {&ux_[p], &uy_[p], &uz_[p]};
       double* w[3] = {&wx_[p], &wy_[p], &wz_[p]};
+      double moved2 = 0.0;
       for (int d = 0; d < 3; ++d) {
         if (!(iv.dofs & (1u << d)))
           continue;
@@ -1158,9 +1617,25 @@ void Simulation::apply_velocities(double t, bool report) {
           kinetic.add(0.5 * slot_mass_[p] * vold[d] * target[d]);
         }
         *w[d] = *u[d] + dt * target[d];
+        const double moved = *w[d] - *u[d];
+        moved2 += moved * moved;
       }
+      double& row = imposed_motion_[imposed_node_row_[c][q]];
+      row = std::max(row, moved2);
     }
   }
+  // A node's motion is that of its free DOF (the node pass measured it) and of its imposed
+  // ones, squares added: the row's largest is at most the root of the sum of the two largest.
+  for (std::size_t c = 0; c < cond_.velocities.size(); ++c)
+    for (const std::uint32_t r : imposed_node_row_[c])
+      if (imposed_motion_[r] >= 0.0) {
+        node_row_motion_[r] =
+            std::sqrt(node_row_motion_[r] * node_row_motion_[r] + imposed_motion_[r]);
+        imposed_motion_[r] = -1.0; // done
+      }
+  for (std::size_t c = 0; c < cond_.velocities.size(); ++c)
+    for (const std::uint32_t r : imposed_node_row_[c])
+      imposed_motion_[r] = 0.0;
   cond_work_ = work;
   cond_work_half_ = work_half;
   cond_damping_ = damping;
@@ -1526,8 +2001,11 @@ double Simulation::bytes_per_module() const {
   total += bytes(imposed_row_) + bytes(imposed_force_);
   for (const auto& q : load_slots_)
     total += bytes(q);
-  total += bytes(row_links_) + bytes(row_link_count_) + bytes(row_fused_) + bytes(row_held_) +
-           bytes(row_damaged_) + bytes(node_rows_) + bytes(bar_rows_);
+  total += bytes(link_ref_) + bytes(row_kind_) + bytes(link_const_) + bytes(row_kinds_) +
+           bytes(row_held_) + bytes(row_damaged_) + bytes(node_rows_) + bytes(bar_rows_) +
+           bytes(row_fast_) + bytes(line_fast_) + bytes(row_ratio_) + bytes(row_inv_lp_) +
+           bytes(row_watch_) + bytes(row_first_centre_) + bytes(row_whole_) +
+           bytes(bar_row_nodes_) + bytes(node_row_motion_);
   for (const auto& b : plane_buffers_)
     total += bytes(b);
   for (const auto& b : line_stores_)

@@ -22,6 +22,7 @@
 #include "util/aligned.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -76,6 +77,12 @@ struct SolverOptions {
   // Lines per block of the step's walk (advance_rows); 0: chosen from the line's size. The
   // results do not depend on it; tests vary it to check that.
   int block_lines = 0;
+  // Intact bars of a uniform material have their forces computed where their nodes gather
+  // them, once at each end, instead of by the bar pass through a buffer, wherever the last
+  // step's strains and motions prove that none of them can pass e_p in this step
+  // (bar_row_stays_intact; docs/architecture.md). AVX-512 builds only. The results are the
+  // same bits either way; tests turn it off to check that.
+  bool intact_at_nodes = true;
 };
 
 // dt by the rule of `step`: a fraction of the stable step, given, or the paper's Courant
@@ -98,6 +105,36 @@ inline bool event_before(const Event& a, const Event& b) {
     return a.bar < b.bar;
   return a.state < b.state;
 }
+
+// A link of a node row (see RowLink) as the step's node kernel reads it. What does not depend
+// on where the row lies, only on its kind (corner or centre) and the faces it touches: the
+// reference vector from the row's node to the other; the law of the link's intact bars,
+// s = k - kl0 / l with kl0 = k l0, and s times `scale` (their area factor over the row's) for
+// the first and last bars of their bar row (nodes ilo and ihi - 1); the nodes [ilo, ihi) that
+// have the link; which plane buffer holds the bars' forces when the bar pass computes them
+// (dk = 0: the row's plane, -1: the one below); whether the row's nodes are the bars' first
+// nodes; and the watch length lw = l0 (1 + e_p / 2): the kernel tells whether some bar is
+// longer (lw2 = lw^2).
+struct LinkConst {
+  double rx, ry, rz, k, l0, kl0, scale, lw2;
+  std::int64_t ilo, ihi;
+  int dk;
+  bool first_node;
+};
+
+// The lanes of a vector of 8 nodes at a row's end, for one link: those whose nodes have the
+// link, and those whose bar is the first or the last of its bar row with a factor of its own.
+struct EdgeLanes {
+  std::uint8_t has, first, last;
+};
+
+// The rest, per row: node i's other node is slot other + i, the force over length of node i's
+// bar (from the bar pass) at plane_base + i of a plane buffer, and the bars' row.
+struct LinkRef {
+  std::int64_t other;
+  std::uint32_t bar_row;
+  std::int32_t plane_base;
+};
 
 class Simulation {
 public:
@@ -224,6 +261,13 @@ public:
   // num_nodes() if none.
   index_t first_node_beyond(double limit) const;
 
+  // Bar rows in all, and those whose bars took the intact fast path in the last step
+  // (SolverOptions::intact_at_nodes).
+  std::size_t bar_row_count() const { return bar_rows_.size(); }
+  std::size_t intact_fast_rows() const {
+    return static_cast<std::size_t>(std::count(row_fast_.begin(), row_fast_.end(), 1));
+  }
+
   std::uint64_t broken_count() const;
   std::uint64_t softening_count() const;
   // Bytes per module held by the simulation's arrays (the state and what the step loop reads).
@@ -256,9 +300,16 @@ private:
   // visit(row, first bar, bar count, k = E A / l0, extension(i) = l - l0) for every bar row
   // never strained past e_p, rows in parallel; none when the material varies per bar.
   template <class F> void for_each_intact_row(F&& visit) const;
-  // Bars of plane rows [begin, end) into that plane's force buffer `s`; with `energies`, the
-  // elastic energy of each row into energy_rows_u_.
-  void bar_rows(std::size_t begin, std::size_t end, double* s, bool energies);
+  // The bar rows of a line into its plane's force buffer `s`; with `energies`, the elastic
+  // energy of each row into energy_rows_u_. Rows whose bars take the intact fast path this
+  // step (row_fast_) are left to the node pass.
+  void bar_rows(std::size_t line, double* s, bool energies);
+  // Whether bar row r's bars are all intact and provably stay below e_p in this step.
+  bool bar_row_stays_intact(std::size_t r) const;
+  // The node row of a node, and the last step's motion of a row made unknown (its bars then
+  // take the bar pass until a step has measured it again).
+  std::size_t node_row_of(index_t node) const;
+  void forget_motion(index_t first, index_t count);
   // The bar forces of line l from a plane buffer into a packed store (Pack), or back.
   template <bool Pack> void move_bar_line(std::size_t l, double* plane, double* packed) const;
   // A report step's elastic and dissipated energy of all bars, per row in energy_rows_u_ and
@@ -276,8 +327,7 @@ private:
   template <class F> void visit_intact_row(std::size_t r, F&& visit) const;
   // Nodes of plane rows [begin, end), with the bar forces of their plane and the one below.
   template <bool Damped, bool Loads, bool Report>
-  void node_rows_range(std::size_t begin, std::size_t end, const double* s_plane,
-                       const double* s_below);
+  void node_rows_range(std::size_t line, const double* s_plane, const double* s_below);
   void mark_damaged_rows();
   void apply_loads(double t);
   void apply_velocities(double t, bool report);
@@ -292,10 +342,24 @@ private:
   std::uint64_t step_ = 0;
 
   std::vector<NodeRow> node_rows_;
-  std::vector<RowLink> row_links_; // kMaxRowLinks per node row
-  std::vector<std::uint8_t> row_link_count_;
-  std::vector<std::pair<index_t, index_t>> row_fused_; // per node row: range of the fused gather
-  std::vector<std::uint8_t> row_held_;                 // per node row: some DOF is fixed or imposed
+  std::vector<std::uint8_t> row_held_; // per node row: some DOF is fixed or imposed
+  // The links of the node rows as the node kernel reads them: LinkConst once per kind of row
+  // (corner or centre, and the faces it touches), LinkRef per row. A kind of row: its length
+  // and links; the vectors of 8 nodes from i = lo on and ending by hi have every link on every
+  // lane and no end bar to scale; the others, in order, take their lanes from edge_lanes_
+  // (kMaxRowLinks per such vector, from edge_begin on).
+  struct RowKind {
+    std::int64_t n;
+    int links;
+    std::int64_t lo, hi;
+    std::size_t edge_begin;
+  };
+  std::vector<LinkConst> link_const_; // kMaxRowLinks per kind of row
+  std::vector<EdgeLanes> edge_lanes_;
+  std::vector<RowKind> row_kinds_;
+  std::vector<std::uint16_t> row_kind_; // per node row
+  std::vector<std::uint8_t> row_whole_; // per node row: the portable kernel's one pass (see there)
+  std::vector<LinkRef> link_ref_;       // kMaxRowLinks per node row
   struct BarRow {
     int family;
     index_t j, k;
@@ -304,6 +368,18 @@ private:
   };
   std::vector<BarRow> bar_rows_;
   std::vector<std::uint8_t> row_damaged_; // per bar row: some bar has h != e_p
+  // The intact fast path (SolverOptions::intact_at_nodes; bar_row_stays_intact). Per bar row:
+  // whether its bars take it in this step, the largest (l / l_p)^2 of its bars when last
+  // evaluated (infinite when not known), 1 / l_p, the largest (l / l_p)^2 a bar no longer than
+  // its watch length can have ((l0 (1 + e_p / 2) / l_p)^2, see LinkConst), whether its first
+  // nodes are centres (else corners), and the node rows of its first and second nodes. Per
+  // line: whether all its bar rows take the fast path. Per node row: the largest
+  // |u_{n+1} - u_n| of its nodes in the last step (infinite when not known).
+  bool fast_path_ = false;
+  std::vector<std::uint8_t> row_fast_, line_fast_, row_first_centre_;
+  std::vector<double> row_ratio_, row_inv_lp_, row_watch_;
+  std::vector<std::array<std::uint32_t, 2>> bar_row_nodes_;
+  std::vector<double> node_row_motion_;
   // Row ranges of each line (fixed j, k) and the lines of each k-plane.
   struct Line {
     std::size_t bar_begin, bar_end, node_begin, node_end;
@@ -314,8 +390,8 @@ private:
   std::vector<Line> lines_;
   std::vector<Plane> planes_;
   int threads_ = 1;
-  // fx, fy, fz, fw and three free-DOF rows of scratch_stride_ (the report's bar energies use
-  // the first two too)
+  // fx, fy, fz, fw, three free-DOF rows and the nodes' motion, each of scratch_stride_ (the
+  // report's bar energies use the first two too)
   mutable std::vector<AlignedVector<double>> thread_scratch_;
   std::size_t scratch_stride_ = 0;
 
@@ -336,6 +412,10 @@ private:
   std::vector<std::int64_t> imposed_row_;
   std::vector<double> imposed_force_;
   std::vector<std::vector<std::pair<std::size_t, index_t>>> imposed_force_at_;
+  // The node row of each imposed-velocity node, and per node row the largest squared motion of
+  // its imposed DOF in this step (apply_velocities adds it to the row's motion).
+  std::vector<std::vector<std::uint32_t>> imposed_node_row_;
+  std::vector<double> imposed_motion_;
   // Bar arrays: the history, the only per-bar state. The bars' force over current length
   // s = F / l lives only in per-thread plane buffers during a step (see advance_rows).
   std::vector<double> h_;
