@@ -574,23 +574,40 @@ struct RowView {
 // sum w s l (l - l0) over the row into *energy (twice the elastic energy: F e l0, the area
 // under the secant), w = 1 for inner bars and `end_scale` for the first and last (the factor
 // the caller applies to their forces afterwards).
+// (Inlined where it is called, as intact_row_kernel.)
 template <bool PerBar, bool Intact, bool Energy = false>
-bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_row, double e_p,
-                    double e_r, const double* __restrict k_bar, const double* __restrict ep_bar,
-                    const double* __restrict er_bar, double end_scale = 1.0,
-                    double* energy = nullptr) {
+[[gnu::always_inline]] inline bool
+bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_row, double e_p,
+               double e_r, const double* __restrict k_bar, const double* __restrict ep_bar,
+               const double* __restrict er_bar, double end_scale = 1.0, double* energy = nullptr) {
   const double inv_l0 = 1.0 / l0;
   int past = 0; // an int, not a bool: GCC vectorises only arithmetic reductions
   double sum = 0.0;
-#pragma omp simd reduction(+ : past, sum)
-  for (index_t i = 0; i < n; ++i) {
-    const double dx = d0.x + (r.ubx[i] - r.uax[i]);
-    const double dy = d0.y + (r.uby[i] - r.uay[i]);
-    const double dz = d0.z + (r.ubz[i] - r.uaz[i]);
+  // The row's pointers in locals: read through `r` in the loop, GCC 12 loads them anew for
+  // every bar and gathers the rows lane by lane.
+  const double* __restrict uax = r.uax;
+  const double* __restrict uay = r.uay;
+  const double* __restrict uaz = r.uaz;
+  const double* __restrict ubx = r.ubx;
+  const double* __restrict uby = r.uby;
+  const double* __restrict ubz = r.ubz;
+  const double* __restrict hr = r.h;
+  double* __restrict sr = r.s;
+  const auto nn = static_cast<std::int64_t>(n);
+  // bar(i): 1 if bar i goes past its history, and with Energy its term of the sum; the loops
+  // name only the reductions they have (GCC 12 vectorises neither with one that stays unused).
+  struct Term {
+    int past;
+    double energy;
+  };
+  const auto bar = [&](std::int64_t i) {
+    const double dx = d0.x + (ubx[i] - uax[i]);
+    const double dy = d0.y + (uby[i] - uay[i]);
+    const double dz = d0.z + (ubz[i] - uaz[i]);
     const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
     const double e = (l - l0) * inv_l0;
     const double ep = PerBar ? ep_bar[i] : e_p;
-    const double h = Intact ? ep : r.h[i];
+    const double h = Intact ? ep : hr[i];
     const double er = PerBar ? er_bar[i] : e_r;
     const double k = PerBar ? k_bar[i] : k_row;
     const double m = e > h ? e : h;
@@ -600,10 +617,26 @@ bool bar_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k_ro
     const double num = tension ? (num_t > 0.0 ? num_t : 0.0) : 1.0;
     const double den = tension ? (er - ep) * m : 1.0;
     const double si = k * (l - l0) * num / (l * den);
-    r.s[i] = si;
-    past += e > h ? 1 : 0;
+    sr[i] = si;
+    Term t{e > h ? 1 : 0, 0.0};
     if constexpr (Energy)
-      sum += (i == 0 || i + 1 == n ? end_scale : 1.0) * si * l * (l - l0);
+      t.energy = (i == 0 || i + 1 == nn ? end_scale : 1.0) * si * l * (l - l0);
+    return t;
+  };
+  if constexpr (Energy) {
+    // (Both sums in doubles: GCC 12 vectorises no loop with an int and a double reduction.)
+    double passed = 0.0;
+#pragma omp simd reduction(+ : passed, sum)
+    for (std::int64_t i = 0; i < nn; ++i) {
+      const Term t = bar(i);
+      passed += t.past;
+      sum += t.energy;
+    }
+    past = passed > 0.0;
+  } else {
+#pragma omp simd reduction(+ : past)
+    for (std::int64_t i = 0; i < nn; ++i)
+      past += bar(i).past;
   }
   if constexpr (Energy)
     *energy = sum;
@@ -743,12 +776,14 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
     return t;
   };
   if constexpr (Energy) {
-#pragma omp simd reduction(+ : past, sum)
+    double passed = 0.0; // (both sums in doubles, as in bar_row_kernel)
+#pragma omp simd reduction(+ : passed, sum)
     for (index_t i = 0; i < n; ++i) {
       const Term t = bar(i);
-      past += t.past;
+      passed += t.past;
       sum += t.energy;
     }
+    past = passed > 0.0;
     *energy = sum;
   } else {
 #pragma omp simd reduction(+ : past)
