@@ -455,6 +455,8 @@ TEST(Fracture, BlocksOfTheWalkChangeNoResult) {
 // and 2 threads. And the fast path must have been taken: a run that never takes it would pass
 // the comparison trivially.
 TEST(Fracture, IntactBarsAtTheNodesChangeNoResult) {
+  if (!Simulation::intact_at_nodes_built())
+    GTEST_SKIP() << "this build has no intact fast path (it needs AVX-512)";
   double share_off = 0.0;
   std::vector<Event> e_ref;
   const std::vector<double> ref =
@@ -518,6 +520,8 @@ std::vector<double> slow_prism_run(bool at_nodes, std::vector<Event>& events, do
 }
 
 TEST(Fracture, SlowlyStrainedBarsLeaveTheFastPathInTime) {
+  if (!Simulation::intact_at_nodes_built())
+    GTEST_SKIP() << "this build has no intact fast path (it needs AVX-512)";
   std::vector<Event> e_ref, e;
   double share_off = 0.0, share = 0.0;
   const std::vector<double> ref = slow_prism_run(false, e_ref, share_off);
@@ -528,6 +532,40 @@ TEST(Fracture, SlowlyStrainedBarsLeaveTheFastPathInTime) {
   EXPECT_GT(broken, 0u) << "no bar broke";
   EXPECT_GT(share, 0.5) << "the fast path was hardly taken";
   expect_same_run(ref, e_ref, u, e, "slowly pulled prism");
+}
+
+// The fast path bounds how far a bar can stretch in a step by how far its nodes moved in the
+// last one (Simulation::motion_bound). A node whose x and y velocities come from two
+// conditions moves by the root of their squares summed, more than either alone (by sqrt(2)
+// here), so the bound must add the conditions' motions. The prism's far face is driven along
+// x by one condition and along y by another; after every step each node's bound must cover its
+// actual motion |u_{n+1} - u_n| (to the rounding of a square root, 1e-12 relative).
+TEST(Fracture, MotionBoundCoversNodesDrivenByTwoConditions) {
+  if (!Simulation::intact_at_nodes_built())
+    GTEST_SKIP() << "this build has no intact fast path (it needs AVX-512)";
+  const MaterialSpec m = unit_material(0.01, 3.0);
+  const Lattice lat(8, 3, 3, 1.0);
+  Conditions c;
+  c.fixed.push_back({face(lat, Face::XMin), kDofAll});
+  c.velocities.push_back({face(lat, Face::XMax), kDofX, {1e-3, 0, 0}, TimeFunction()});
+  c.velocities.push_back({face(lat, Face::XMax), kDofY, {0, 1e-3, 0}, TimeFunction()});
+  Simulation sim = make_sim(8, 3, 3, 1.0, m, c);
+  const index_t nn = sim.lattice().num_nodes();
+  std::size_t driven_checked = 0;
+  for (int s = 0; s < 20; ++s) {
+    std::vector<Vec3> before(nn);
+    for (index_t n = 0; n < nn; ++n)
+      before[n] = sim.displacement(n);
+    sim.step(s % 5 == 0);
+    for (index_t n = 0; n < nn; ++n) {
+      const Vec3 u = sim.displacement(n);
+      const double dx = u.x - before[n].x, dy = u.y - before[n].y, dz = u.z - before[n].z;
+      const double moved = std::sqrt(dx * dx + dy * dy + dz * dz);
+      EXPECT_GE(sim.motion_bound(n) * (1 + 1e-12), moved) << "node " << n << ", step " << s;
+      driven_checked += moved > 0.0;
+    }
+  }
+  EXPECT_GT(driven_checked, 0u);
 }
 
 } // namespace

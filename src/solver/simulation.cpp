@@ -279,7 +279,8 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
              std::equal(kind, kind + nl, &link_const_[kMaxRowLinks * t], same)))
       ++t;
     if (t == row_kinds_.size()) {
-      // Fewer than 7 links (a box a module or two wide): padded to 7 with links no lane has.
+      // Fewer than 7 links (the corner rows along a box's x edges have 6, rows of a box a
+      // module wide fewer): padded to 7 with links no lane has.
       if (nl < 7)
         lo = hi = 0;
       hi = std::max(lo, hi);
@@ -316,7 +317,9 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   for (std::size_t r = 0; r < node_rows_.size(); ++r) {
     RowLink links[kMaxRowLinks];
     const int nl = row_links(lat_, node_rows_[r], links);
-    bool whole = true;
+    // (A row with fewer than 7 links is padded to 7 with a link that no node has; the whole-row
+    // pass would read that link's s from the start of the plane buffer.)
+    bool whole = nl >= 7;
     for (int l = 0; l < nl; ++l)
       whole = whole && links[l].other_base >= 0 &&
               links[l].other_base + node_rows_[r].length <= std::int64_t{lat_.num_nodes()};
@@ -348,6 +351,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
       }
     }
     imposed_motion_.assign(node_rows_.size(), 0.0);
+    condition_motion_.assign(node_rows_.size(), 0.0);
   }
   row_held_.assign(node_rows_.size(), 0);
   for (std::size_t r = 0; r < node_rows_.size(); ++r)
@@ -1346,8 +1350,8 @@ void Simulation::node_rows_range(std::size_t line, const double* s_plane, const 
 
       const int nl = kind.links;
       // Each link fast or from the buffer, as its bar row is in this step. Rows inside a box
-      // have 14 links, rows on its faces and edges fewer; a row with fewer than 7 (in a box a
-      // module or two wide) has links that no node has up to 7, which every lane masks.
+      // have 14 links, rows on its faces and edges fewer; a row with fewer than 7 (the corner
+      // rows along the x edges) has links that no node has up to 7, which every lane masks.
       // (A row's links are all fast when the four lines are, else look link by link.)
       bool all_fast = nl >= 7 && lines_fast;
       if (!all_fast && nl >= 7 && fast_path_) {
@@ -1655,8 +1659,14 @@ void Simulation::apply_velocities(double t, bool report) {
         const double moved = *w[d] - *u[d];
         moved2 += moved * moved;
       }
-      double& row = imposed_motion_[imposed_node_row_[c][q]];
+      double& row = condition_motion_[imposed_node_row_[c][q]];
       row = std::max(row, moved2);
+    }
+    // Conditions may share a node (one imposes x, another y): each adds its rows' largest
+    // squared motion, so a row's sum bounds the squared motion of any of its nodes.
+    for (const std::uint32_t r : imposed_node_row_[c]) {
+      imposed_motion_[r] += condition_motion_[r];
+      condition_motion_[r] = 0.0;
     }
   }
   // A node's motion is that of its free DOF (the node pass measured it) and of its imposed
@@ -1675,6 +1685,14 @@ void Simulation::apply_velocities(double t, bool report) {
   cond_work_half_ = work_half;
   cond_damping_ = damping;
   cond_kinetic_ = kinetic;
+}
+
+bool Simulation::intact_at_nodes_built() {
+  return kVectorKernel;
+}
+
+double Simulation::motion_bound(index_t node) const {
+  return node_row_motion_[node_row_of(node)];
 }
 
 void Simulation::step(bool report) {

@@ -267,6 +267,12 @@ public:
   std::size_t intact_fast_rows() const {
     return static_cast<std::size_t>(std::count(row_fast_.begin(), row_fast_.end(), 1));
   }
+  // The fast path's bound on how far `node` moved in the last step: the largest |u_{n+1} - u_n|
+  // over its node row, infinite when not known (0 when the fast path is off).
+  double motion_bound(index_t node) const;
+  // Whether this build has that fast path at all (AVX-512 builds; elsewhere every bar takes
+  // the bar pass, whatever SolverOptions::intact_at_nodes says).
+  static bool intact_at_nodes_built();
 
   std::uint64_t broken_count() const;
   std::uint64_t softening_count() const;
@@ -412,10 +418,12 @@ private:
   std::vector<std::int64_t> imposed_row_;
   std::vector<double> imposed_force_;
   std::vector<std::vector<std::pair<std::size_t, index_t>>> imposed_force_at_;
-  // The node row of each imposed-velocity node, and per node row the largest squared motion of
-  // its imposed DOF in this step (apply_velocities adds it to the row's motion).
+  // The node row of each imposed-velocity node; per node row, the largest squared motion of
+  // the DOF one condition imposes on its nodes in this step (condition_motion_, scratch), and
+  // those summed over the conditions (imposed_motion_; apply_velocities adds it to the row's
+  // motion).
   std::vector<std::vector<std::uint32_t>> imposed_node_row_;
-  std::vector<double> imposed_motion_;
+  std::vector<double> imposed_motion_, condition_motion_;
   // Bar arrays: the history, the only per-bar state. The bars' force over current length
   // s = F / l lives only in per-thread plane buffers during a step (see advance_rows).
   std::vector<double> h_;
