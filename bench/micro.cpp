@@ -88,7 +88,7 @@ BENCHMARK(BM_WriteVtu)->Arg(32)->Unit(benchmark::kMillisecond);
 // The core's arithmetic roof: vectors of 8 doubles (GCC vector extensions: one AVX-512
 // instruction each, two AVX2 ones), half of the chains a * b + c (one fused multiply-add),
 // half a + b, twelve chains so that their latencies overlap. Reports vector operations per
-// second (ops_per_s); the step's arithmetic needs about 5.7 of them per bar update on the
+// second (ops_per_s); the step's arithmetic needs about 5.8 of them per bar update on the
 // AVX-512 build (bench/README.md, "Roofs").
 void BM_ArithmeticPeak(benchmark::State& state) {
   using v8 = double __attribute__((vector_size(64)));
