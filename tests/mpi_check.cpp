@@ -56,7 +56,7 @@ int check(bool loaded, ProcessGrid grid) {
   for (index_t b = 0; b < loc.num_bars(); ++b) {
     index_t g = 0;
     if (SubdomainScenario::owned_bar(run, lat, b, g))
-      bars.insert(bars.end(), {double(g), run.sim().bar_history(b)});
+      bars.insert(bars.end(), {double(g), run.sim().bar_state_value(0, b)});
   }
   nodes = gather_on_first(nodes);
   bars = gather_on_first(bars);
@@ -74,9 +74,9 @@ int check(bool loaded, ProcessGrid grid) {
     }
     for (std::size_t q = 0; q < bars.size() && !bad; q += 2) {
       const auto id = static_cast<index_t>(bars[q]);
-      if (whole.bar_history(id) != bars[q + 1]) {
+      if (whole.bar_state_value(0, id) != bars[q + 1]) {
         std::printf("mpi_check: history of bar %u differs: %.17g against %.17g\n", id, bars[q + 1],
-                    whole.bar_history(id));
+                    whole.bar_state_value(0, id));
         bad = 1;
       }
     }

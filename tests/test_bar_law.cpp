@@ -95,13 +95,44 @@ TEST(ElasticEquivalence, FractureAreasAndRatios) {
 // Bilinear law on hand-checkable numbers: EA = 2 N, l0 = 0.5 m, e_p = 0.01, e_r = 0.03
 // (K_r = 3). Peak force EA e_p = 0.02 N; softening slope -EA e_p / (e_r - e_p) = -1 N.
 
-const BilinearLaw kLaw{2.0, 0.5, 0.01, 0.03};
+// One bar of the law: EA, l0 and the law's constants, evaluated at a strain e (the bar's
+// stretch at e) and a history h through the law's functions (bar_law_bilinear.hpp).
+struct TestBar {
+  double EA, l0, e_p, e_r;
+  BilinearLaw law() const { return {e_p, e_r}; }
+  Stretch at(double e) const { return {l0 + l0 * e, l0 * e, e}; }
+  double force(double e, double h) const { return law().force(EA / l0, at(e), {h}); }
+  double stored_energy(double e, double h) const {
+    const BilinearLaw::State s{h};
+    return law().elastic_energy(law().force_over_length(EA / l0, at(e), s), at(e), s);
+  }
+  double dissipated_energy(double h) const { return law().dissipated_energy(EA, l0, {h}); }
+  double envelope(double m) const { return law().envelope(EA, m); }
+  BarState state(double h) const { return law().state({h}); }
+  double initial_history() const { return law().initial().h; }
+  // The history after strain e, by the law's update.
+  double next_history(double h, double e) const {
+    BilinearLaw::State s{h};
+    if (law().changes(e, s))
+      law().update(e, s, [](BarState) {});
+    return s.h;
+  }
+};
+
+// Bar `bar` of a table, as a TestBar.
+TestBar bar_of(const BarTable& t, const Lattice& lat, index_t bar) {
+  const BilinearLaw law = t.law(lat, bar);
+  return {t.axial_stiffness(lat, bar), t.family(static_cast<int>(lat.bar_address(bar).family)).l0,
+          law.e_p, law.e_r};
+}
+
+const TestBar kLaw{2.0, 0.5, 0.01, 0.03};
 
 TEST(BilinearLaw, EnvelopeIsLinearThenSoftensToZero) {
-  const BilinearLaw& b = kLaw;
+  const TestBar& b = kLaw;
   EXPECT_EQ(b.initial_history(), 0.01);
   // Monotonic loading: the history follows the strain once above e_p.
-  auto on_path = [&](double e) { return b.force(e, BilinearLaw::next_history(0.01, e)); };
+  auto on_path = [&](double e) { return b.force(e, b.next_history(0.01, e)); };
   EXPECT_NEAR(on_path(0.0), 0.0, 1e-17);
   EXPECT_NEAR(on_path(0.004), 2.0 * 0.004, 1e-17); // F = EA e
   EXPECT_NEAR(on_path(0.01), 0.02, 1e-17);         // peak A
@@ -122,29 +153,29 @@ TEST(BilinearLaw, EnvelopeIsLinearThenSoftensToZero) {
 // F = F_env(h) e / h = 0.5 e, with the history fixed; reloading follows the same line up to
 // P and then the envelope again.
 TEST(BilinearLaw, UnloadingAndReloadingFollowTheSecant) {
-  const BilinearLaw& b = kLaw;
+  const TestBar& b = kLaw;
   double h = 0.02;
   for (double e : {0.018, 0.01, 0.004, 1e-6, 0.0}) {
-    h = BilinearLaw::next_history(h, e);
+    h = b.next_history(h, e);
     EXPECT_EQ(h, 0.02);
     EXPECT_NEAR(b.force(e, h), 0.5 * e, 1e-16) << e;
     EXPECT_EQ(b.state(h), BarState::Softening);
   }
   for (double e : {0.005, 0.015, 0.02}) {
-    h = BilinearLaw::next_history(h, e);
+    h = b.next_history(h, e);
     EXPECT_NEAR(b.force(e, h), 0.5 * e, 1e-16) << e;
   }
   EXPECT_EQ(h, 0.02);
-  h = BilinearLaw::next_history(h, 0.025);
+  h = b.next_history(h, 0.025);
   EXPECT_NEAR(b.force(0.025, h), 0.005, 1e-16); // back on the envelope
-  // The secant pieces give the same force: F = EA e num / den.
-  const BilinearLaw::Secant g = b.secant(0.01, 0.02);
-  EXPECT_NEAR(g.num / g.den, 0.25, 1e-15); // secant stiffness 0.5 N = EA x 1/4
+  // What the kernels take, the force over the current length: s = F / l, here on the secant
+  // of stiffness 0.5 N = EA x 1/4 at e = 0.01: F = 0.005 N, l = 0.505 m.
+  EXPECT_NEAR(b.law().force_over_length(b.EA / b.l0, b.at(0.01), {0.02}), 0.005 / 0.505, 1e-16);
 }
 
 // Compression uses the undamaged stiffness whatever the damage: F = EA e = 2 x (-0.004).
 TEST(BilinearLaw, CompressionIsElasticEvenWhenDamagedOrPrecracked) {
-  const BilinearLaw& b = kLaw;
+  const TestBar& b = kLaw;
   for (double h : {0.01, 0.02, 0.03, 0.5, BilinearLaw::kPrecracked}) {
     EXPECT_NEAR(b.force(-0.004, h), -0.008, 1e-17) << h;
     // Stored energy EA e^2 l0 / 2 = 2 x 1.6e-5 x 0.5 / 2 = 8e-6 J.
@@ -158,7 +189,7 @@ TEST(BilinearLaw, CompressionIsElasticEvenWhenDamagedOrPrecracked) {
 }
 
 TEST(BilinearLaw, StateTransitions) {
-  const BilinearLaw& b = kLaw;
+  const TestBar& b = kLaw;
   EXPECT_EQ(b.state(b.initial_history()), BarState::Intact);
   EXPECT_EQ(b.state(0.0100001), BarState::Softening);
   EXPECT_EQ(b.state(0.0299999), BarState::Softening);
@@ -168,7 +199,7 @@ TEST(BilinearLaw, StateTransitions) {
   double h = b.initial_history();
   BarState last = BarState::Intact;
   for (double e : {0.005, 0.01, 0.015, 0.0, -0.01, 0.02, 0.029, 0.0, 0.031, 0.0, -0.1}) {
-    h = BilinearLaw::next_history(h, e);
+    h = b.next_history(h, e);
     const BarState s = b.state(h);
     EXPECT_GE(static_cast<int>(s), static_cast<int>(last)) << e;
     last = s;
@@ -180,7 +211,7 @@ TEST(BilinearLaw, StateTransitions) {
 // |x_A y_P - x_P y_A| / 2 = |0.01 x 0.01 - 0.02 x 0.02| / 2 = 1.5e-4, x l0 = 7.5e-5 J.
 // At rupture, triangle O-A-B: EA e_p e_r l0 / 2 = 2 x 0.01 x 0.03 x 0.5 / 2 = 1.5e-4 J.
 TEST(BilinearLaw, DissipatedEnergyIsTriangleOAP) {
-  const BilinearLaw& b = kLaw;
+  const TestBar& b = kLaw;
   EXPECT_EQ(b.dissipated_energy(0.01), 0.0);
   EXPECT_NEAR(b.dissipated_energy(0.02), 7.5e-5, 1e-18);
   EXPECT_NEAR(b.dissipated_energy(0.03), 1.5e-4, 1e-18);
@@ -193,7 +224,7 @@ TEST(BilinearLaw, DissipatedEnergyIsTriangleOAP) {
 // |slope jump| de^2 / 8 per kink; slope jumps EA + EA e_p / (e_r - e_p) = 3 N at e_p and
 // 1 N at e_r, so the error is below (3 + 1) de^2 / 8 x l0 per crossing.
 TEST(BilinearLaw, WorkEqualsStoredPlusDissipated) {
-  const BilinearLaw& b = kLaw;
+  const TestBar& b = kLaw;
   const double de = b.e_r / 317.0; // not commensurate with e_p or e_r
   const double kink_error = 4.0 * de * de / 8.0 * b.l0;
   double e = 0.0, h = b.initial_history(), W = 0.0;
@@ -203,7 +234,7 @@ TEST(BilinearLaw, WorkEqualsStoredPlusDissipated) {
     for (int s = 1; s <= n; ++s) {
       const double e1 = e0 + (target - e0) * s / n;
       const double f0 = b.force(e, h);
-      h = BilinearLaw::next_history(h, e1);
+      h = b.next_history(h, e1);
       W += 0.5 * (f0 + b.force(e1, h)) * (e1 - e) * b.l0;
       e = e1;
     }
@@ -254,7 +285,7 @@ TEST(BilinearLaw, RuptureDissipatesGfTimesFractureArea) {
       const double Af = (diag ? 4.0 / 22.0 : 3.0 / 22.0) * L2;
       const double l0 = diag ? kSqrt3 / 2.0 * m.L : m.L;
       const double Kr = ductility(m.Gf, m.E, m.e_p, Af / A, l0);
-      const BilinearLaw b{m.E * A, l0, m.e_p, Kr * m.e_p};
+      const TestBar b{m.E * A, l0, m.e_p, Kr * m.e_p};
       expect_rel(b.dissipated_energy(b.e_r), m.Gf * Af, 1e-12, diag ? "diagonal" : "normal");
       expect_rel(b.dissipated_energy(10 * b.e_r), m.Gf * Af, 1e-12);
       expect_rel(b.dissipated_energy(b.e_r), 0.5 * b.EA * b.e_p * b.e_r * b.l0, 1e-12);
@@ -337,7 +368,7 @@ TEST(BarTable, PmmaPlateDuctilities) {
   // (e_r = 0.06 is the SPEC's rounding of the K_r = 2.37 that Gf = 352.3 would give).
   for (index_t bar : {lat.bar(Family::EdgeX, 1, 0, 2), lat.bar(Family::CentreZ, 2, 0, 1),
                       lat.bar(Family::Diag5, 3, 0, 0)}) {
-    const BilinearLaw b = t.law(lat, bar);
+    const TestBar b = bar_of(t, lat, bar);
     const double Af = (lat.bar_kind(bar) == BarKind::Diagonal ? 4.0 : 3.0) / 22.0 * 25e-10;
     expect_rel(b.dissipated_energy(b.e_r) / (lat.area_factor(bar) * Af), 356.4, 1e-12);
   }
@@ -358,7 +389,7 @@ TEST(BarTable, DuctilityFromEquation12AndExactDissipationPerBar) {
   const ElasticEquivalence eq = elastic_equivalence(0.25);
   for (index_t bar = 0; bar < lat.num_bars(); ++bar) {
     const bool diag = lat.bar_kind(bar) == BarKind::Diagonal;
-    const BilinearLaw b = t.law(lat, bar);
+    const TestBar b = bar_of(t, lat, bar);
     const double factor = lat.area_factor(bar);
     expect_rel(b.e_r / b.e_p, diag ? kr_d : kr_n, 1e-13);
     expect_rel(b.EA, 3.24e9 * (diag ? eq.area_diag : 0.4) * L2 * factor, 1e-14);
@@ -381,7 +412,7 @@ TEST(BarTable, SingleRatio) {
   const int diag = static_cast<int>(Family::Diag3), edge = static_cast<int>(Family::EdgeZ);
   EXPECT_NEAR(t.family(edge).e_r / 0.025, kPmmaLength * 0.34 * 2 / kPmmaL, 1e-12);
   EXPECT_NEAR(t.family(diag).e_r / 0.025, kPmmaLength * 0.34 * 2 / (kSqrt3 / 2 * kPmmaL), 1e-12);
-  const BilinearLaw b = t.law(lat, lat.bar(Family::Diag3, 0, 0, 0));
+  const TestBar b = bar_of(t, lat, lat.bar(Family::Diag3, 0, 0, 0));
   const double Af = 4.0 / 22.0 * kPmmaL * kPmmaL;
   expect_rel(b.dissipated_energy(b.e_r), 352.3 * Af * 0.34 / (20 * kSqrt3 / 99), 1e-12);
   EXPECT_NEAR(1.0 - 0.34 / (20 * kSqrt3 / 99), 0.028, 0.001);
@@ -459,11 +490,11 @@ TEST(BarTable, LowDuctilityIsRefusedWithCountCriticalLengthAndPosition) {
   // -EA e_p / (e_r - e_p) needs e_r > e_p: an accepted table must give every bar a law that
   // is elastic below the peak and never pulls with a negative or non-finite force.
   for (index_t bar = 0; bar < lat.num_bars(); ++bar) {
-    const BilinearLaw b = t.law(lat, bar);
+    const TestBar b = bar_of(t, lat, bar);
     EXPECT_GT(b.e_r, b.e_p) << "bar " << bar;
     expect_rel(b.force(0.5 * b.e_p, b.e_p), 0.5 * b.EA * b.e_p, 1e-14, "elastic branch");
     for (double e : {b.e_p, 1.5 * b.e_p, 3.0 * b.e_p}) {
-      const double F = b.force(e, BilinearLaw::next_history(b.e_p, e));
+      const double F = b.force(e, b.next_history(b.e_p, e));
       EXPECT_TRUE(std::isfinite(F) && F >= 0.0) << "bar " << bar << ", e = " << e;
     }
     EXPECT_TRUE(std::isfinite(b.dissipated_energy(3.0 * b.e_p)));
@@ -533,7 +564,7 @@ TEST(BarTable, PerBarFieldsAgreeWithFamilyConstants) {
     ASSERT_TRUE(per_bar.per_bar());
     ASSERT_FALSE(uniform.per_bar());
     for (index_t bar = 0; bar < lat.num_bars(); ++bar) {
-      const BilinearLaw a = uniform.law(lat, bar), b = per_bar.law(lat, bar);
+      const TestBar a = bar_of(uniform, lat, bar), b = bar_of(per_bar, lat, bar);
       expect_rel(b.EA, a.EA, 1e-14);
       EXPECT_EQ(b.l0, a.l0);
       EXPECT_EQ(b.e_p, a.e_p);
@@ -549,7 +580,7 @@ TEST(BarTable, PerBarFieldsAgreeWithFamilyConstants) {
   const double L2 = kPmmaL * kPmmaL;
   for (index_t bar = 0; bar < lat.num_bars(); ++bar) {
     const bool diag = lat.bar_kind(bar) == BarKind::Diagonal;
-    const BilinearLaw b = t.law(lat, bar);
+    const TestBar b = bar_of(t, lat, bar);
     const double kr = (fields.Gf[bar] / 352.3) * (diag ? kPmmaLength * 80.0 / (99.0 * kPmmaL)
                                                        : kPmmaLength * (15.0 / 22.0) / kPmmaL);
     expect_rel(b.e_r / b.e_p, kr, 1e-13);

@@ -293,8 +293,7 @@ DenseModes dense_modes(const Simulation& sim) {
     if (sim.bar_state(bar) == BarState::Broken)
       continue;
     const FamilyInfo& fi = lat.family(lat.bar_address(bar).family);
-    const BilinearLaw law = sim.table().law(lat, bar);
-    const double k = law.EA / law.l0;
+    const double k = sim.table().stiffness(lat, bar);
     const auto [a, b] = lat.bar_nodes(bar);
     const index_t nodes[2] = {a, b};
     for (int p = 0; p < 2; ++p)

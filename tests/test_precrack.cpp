@@ -211,7 +211,9 @@ TEST(Precrack, SplitModulesDissipateGfPerUnitArea) {
     double D = 0.0;
     for (index_t bar : cut.bars) {
       const BilinearLaw law = table.law(lat, bar);
-      D += law.dissipated_energy(law.e_r);
+      D += law.dissipated_energy(table.axial_stiffness(lat, bar),
+                                 table.family(static_cast<int>(lat.bar_address(bar).family)).l0,
+                                 {law.e_r});
     }
     const double full = m.Gf * 4 * 3 * L * L;
     const double want = k >= 1 ? full : 19.0 / 22.0 * full;

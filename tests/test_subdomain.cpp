@@ -170,7 +170,8 @@ void expect_subdomains_match_whole_body(ProcessGrid grid, bool loaded) {
       index_t g = 0;
       if (S::owned_bar(s, lat, b, g)) {
         ++owned_bars;
-        ASSERT_EQ(s.sim().bar_history(b), whole.bar_history(g)) << "rank " << rank << " bar " << g;
+        ASSERT_EQ(s.sim().bar_state_value(0, b), whole.bar_state_value(0, g))
+            << "rank " << rank << " bar " << g;
       }
     }
   }

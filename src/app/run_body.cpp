@@ -486,7 +486,7 @@ template <class F> void RunBody::for_each_owned_piece(F&& visit) {
     }
   for (const Span& s : bar_spans(true)) {
     buf.clear();
-    sim().append_histories(s.local_first, s.count, buf);
+    sim().append_bar_states(0, s.local_first, s.count, buf);
     visit(6 * nodes + s.global_first, buf.data(), s.count);
   }
 }
@@ -624,7 +624,7 @@ std::string RunBody::read_checkpoint(const std::string& path) {
   for (const Span& sp : bar_spans(false)) {
     buf.resize(sp.count);
     read_piece(6 * nodes + sp.global_first, buf.data(), sp.count);
-    s.assign_histories(sp.local_first, sp.count, buf.data());
+    s.assign_bar_states(0, sp.local_first, sp.count, buf.data());
   }
   // The checksum: every process adds the terms of what it owns.
   std::uint64_t sum = writes() ? ck::fnv1a(h.meta.data(), h.meta.size()) +

@@ -194,18 +194,24 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
 void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   constexpr index_t chunk = 4096; // nodes per task
   const auto chunks = static_cast<std::ptrdiff_t>((nn_ + chunk - 1) / chunk);
-#pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t c = 0; c < chunks; ++c) {
-    const auto first = static_cast<index_t>(c) * chunk;
-    sim.for_each_node_state(first, std::min(chunk, nn_ - first), [&](index_t n, Vec3 u, Vec3 v) {
-      const std::size_t o = 3 * std::size_t{n};
-      disp_[o] = static_cast<float>(u.x);
-      disp_[o + 1] = static_cast<float>(u.y);
-      disp_[o + 2] = static_cast<float>(u.z);
-      vel_[o] = static_cast<float>(v.x);
-      vel_[o + 1] = static_cast<float>(v.y);
-      vel_[o + 2] = static_cast<float>(v.z);
-    });
+#pragma omp parallel
+  {
+    std::vector<Vec3> u(chunk), v(chunk);
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t c = 0; c < chunks; ++c) {
+      const auto first = static_cast<index_t>(c) * chunk;
+      const index_t count = std::min(chunk, nn_ - first);
+      sim.node_states(first, count, u.data(), v.data());
+      for (index_t q = 0; q < count; ++q) {
+        const std::size_t o = 3 * (std::size_t{first} + q);
+        disp_[o] = static_cast<float>(u[q].x);
+        disp_[o + 1] = static_cast<float>(u[q].y);
+        disp_[o + 2] = static_cast<float>(u[q].z);
+        vel_[o] = static_cast<float>(v[q].x);
+        vel_[o + 1] = static_cast<float>(v[q].y);
+        vel_[o + 2] = static_cast<float>(v[q].z);
+      }
+    }
   }
   sim.bar_snapshot(state_, damage_, force_);
   const auto nb = static_cast<std::ptrdiff_t>(nb_);

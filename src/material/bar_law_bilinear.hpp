@@ -1,7 +1,7 @@
-// The bilinear (Hillerborg-type) bar law of paper eqs. 7-17, as a pure value type.
+// The bilinear (Hillerborg-type) bar law of paper eqs. 7-17, `law = "bilinear"`.
 //
-// Strain e = (l - l0) / l0. The history h is the largest strain the bar has reached,
-// never below e_p (so an intact bar has h = e_p). Force:
+// Strain e = (l - l0) / l0. The state is the history h, the largest strain the bar has
+// reached, never below e_p (so an intact bar has h = e_p). Force:
 //   e <= 0                : F = EA e                  (compression, undamaged stiffness)
 //   0 < e, max(h, e) = m  : F = EA e g(m),  g(m) = e_p (e_r - m) / ((e_r - e_p) m) in [0, 1]
 // i.e. linear up to e_p, linear softening to zero at e_r on the envelope, and unloading
@@ -9,67 +9,115 @@
 // carries compression only and has dissipated nothing in this run.
 #pragma once
 
+#include "lattice/lattice.hpp"
+#include "material/bar_law.hpp"
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
 namespace ldem {
 
-enum class BarState : unsigned char { Intact, Softening, Broken };
+class BarTable;
 
 struct BilinearLaw {
-  double EA;  // axial stiffness times area [N]
-  double l0;  // reference length [m]
   double e_p; // strain at peak force
   double e_r; // strain at rupture, e_r = K_r e_p > e_p
 
-  static constexpr double kPrecracked = std::numeric_limits<double>::infinity();
-
-  double initial_history() const noexcept { return e_p; }
-  static double next_history(double h, double e) noexcept { return std::max(h, e); }
-
-  // Secant factor g(m) written as num / den, so that the hot loop needs one division.
-  struct Secant {
-    double num, den;
+  static constexpr std::string_view kName = "bilinear";
+  // The history is not written to the snapshots: their state and damage show it.
+  static constexpr std::array<StateArray, 1> kStateArrays{{{"history", false}}};
+  struct State {
+    double h;
   };
-  Secant secant(double e, double h) const noexcept {
-    if (!(e > 0.0))
-      return {1.0, 1.0};
-    const double m = std::max(h, e);
-    return {std::max(e_p * (e_r - m), 0.0), (e_r - e_p) * m};
+  static State read(const double* const* arrays, std::int64_t i) noexcept { return {arrays[0][i]}; }
+  static void write(double* const* arrays, std::int64_t i, State s) noexcept { arrays[0][i] = s.h; }
+
+  static constexpr double kPrecracked = std::numeric_limits<double>::infinity();
+  State initial() const noexcept { return {e_p}; }
+  static State precracked() noexcept { return {kPrecracked}; }
+  bool pristine(State s) const noexcept { return s.h == e_p; }
+  double elastic_limit() const noexcept { return e_p; }
+
+  // s = F / l = k (l - l0) g / l, with g = num / den so that the vector loop needs one
+  // division, and g = 1 in compression.
+  double force_over_length(double k, Stretch g, State s) const noexcept {
+    const double m = g.e > s.h ? g.e : s.h;
+    const bool tension = g.e > 0.0;
+    const double num_t = e_p * (e_r - m);
+    const double num = tension ? (num_t > 0.0 ? num_t : 0.0) : 1.0;
+    const double den = tension ? (e_r - e_p) * m : 1.0;
+    return k * g.dl * num / (g.l * den);
+  }
+  // The axial force F = s l.
+  double force(double k, Stretch g, State s) const noexcept {
+    return force_over_length(k, g, s) * g.l;
   }
 
-  double force(double e, double h) const noexcept {
-    const Secant g = secant(e, h);
-    return EA * e * g.num / g.den;
+  bool changes(double e, State s) const noexcept { return e > s.h; }
+  // The history rises to e; the bar softens when it first passes e_p and breaks at e_r.
+  template <class Emit> void update(double e, State& s, Emit&& emit) const {
+    if (s.h <= e_p && e > e_p)
+      emit(BarState::Softening);
+    if (s.h < e_r && e >= e_r)
+      emit(BarState::Broken);
+    s.h = e;
+  }
+
+  // The area under the secant (or the elastic line in compression): F (l - l0) / 2.
+  static double elastic_energy(double s_over_l, Stretch g, State) noexcept {
+    return 0.5 * s_over_l * g.l * g.dl;
   }
 
   // Envelope force at a largest strain m >= e_p.
-  double envelope(double m) const noexcept {
+  double envelope(double EA, double m) const noexcept {
     return m >= e_r ? 0.0 : EA * e_p * (e_r - m) / (e_r - e_p);
   }
-
-  // Recoverable energy at strain e with history h: the area under the secant (or the
-  // elastic line in compression) times l0.
-  double stored_energy(double e, double h) const noexcept { return 0.5 * force(e, h) * e * l0; }
 
   // Energy dissipated so far: the triangle O-A-P of the paper's Fig. 1c, A = (e_p, EA e_p)
   // the peak and P = (m, F_env(m)) the current point of the envelope, times l0:
   //   D = l0 (m EA e_p - e_p F_env(m)) / 2,
   // which for m >= e_r is EA e_p e_r l0 / 2 = Gf A^f by the choice of K_r (eq. 11).
-  double dissipated_energy(double h) const noexcept {
-    if (std::isinf(h) || h <= e_p)
+  double dissipated_energy(double EA, double l0, State s) const noexcept {
+    if (std::isinf(s.h) || s.h <= e_p)
       return 0.0; // pre-cracked, or never past the peak (exactly 0, not a round-off residue)
-    const double m = std::min(h, e_r);
-    return 0.5 * l0 * (m * EA * e_p - e_p * envelope(m));
+    const double m = std::min(s.h, e_r);
+    return 0.5 * l0 * (m * EA * e_p - e_p * envelope(EA, m));
+  }
+  // What a broken bar has dissipated, EA e_p e_r l0 / 2: damage is D over it (a pre-cracked
+  // bar counts as fully damaged).
+  double damage(double EA, double l0, State s) const noexcept {
+    return std::isinf(s.h) ? 1.0 : dissipated_energy(EA, l0, s) / (0.5 * EA * e_p * e_r * l0);
   }
 
-  BarState state(double h) const noexcept {
-    if (h >= e_r)
+  BarState state(State s) const noexcept {
+    if (s.h >= e_r)
       return BarState::Broken;
-    return h > e_p ? BarState::Softening : BarState::Intact;
+    return s.h > e_p ? BarState::Softening : BarState::Intact;
   }
+
+  // The constants of a row of bars as the kernels read them: the family's, or per bar (a
+  // material that varies: the table's per-bar arrays from the row's first bar on).
+  struct Row;
+  static Row row(const BarTable& table, int family, index_t first_bar);
+  template <bool PerBar> static BilinearLaw at(const Row& row, std::int64_t i) noexcept;
 };
+
+struct BilinearLaw::Row {
+  BilinearLaw family;
+  const double* e_p;
+  const double* e_r;
+};
+
+template <bool PerBar> BilinearLaw BilinearLaw::at(const Row& row, std::int64_t i) noexcept {
+  if constexpr (PerBar)
+    return {row.e_p[i], row.e_r[i]};
+  else
+    return row.family;
+}
+
+static_assert(BarLaw<BilinearLaw>);
 
 // e_p from the failure factor R_f (eq. 7).
 inline double failure_strain(double R_f, double Gf, double E, double nu) {

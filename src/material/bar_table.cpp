@@ -224,16 +224,32 @@ BarTable::Properties BarTable::properties(const Lattice& lat, index_t bar) const
   const FamilyMaterial& m = families_[static_cast<int>(a.family)];
   const double factor = lat.area_factor(a.family, a.i, a.j, a.k);
   const BilinearLaw l = law(lat, bar);
-  return {l.EA / (m.area * factor), 0.5 * l.EA * l.e_p * l.e_r * l.l0 / (m.area_f * factor), l.e_p,
+  const double EA = axial_stiffness(lat, bar);
+  return {EA / (m.area * factor), 0.5 * EA * l.e_p * l.e_r * m.l0 / (m.area_f * factor), l.e_p,
           l.e_r};
 }
 
 BilinearLaw BarTable::law(const Lattice& lat, index_t bar) const {
+  if (per_bar())
+    return {e_p_[bar], e_r_[bar]};
+  const FamilyMaterial& m = families_[static_cast<int>(lat.bar_address(bar).family)];
+  return {m.e_p, m.e_r};
+}
+
+double BarTable::axial_stiffness(const Lattice& lat, index_t bar) const {
   const BarAddress a = lat.bar_address(bar);
   const FamilyMaterial& m = families_[static_cast<int>(a.family)];
   if (per_bar())
-    return {k_[bar] * m.l0, m.l0, e_p_[bar], e_r_[bar]};
-  return {m.k * m.l0 * lat.area_factor(a.family, a.i, a.j, a.k), m.l0, m.e_p, m.e_r};
+    return k_[bar] * m.l0;
+  return m.k * m.l0 * lat.area_factor(a.family, a.i, a.j, a.k);
+}
+
+double BarTable::stiffness(const Lattice& lat, index_t bar) const {
+  const BarAddress a = lat.bar_address(bar);
+  const FamilyMaterial& m = families_[static_cast<int>(a.family)];
+  if (per_bar())
+    return k_[bar];
+  return m.k * lat.area_factor(a.family, a.i, a.j, a.k);
 }
 
 } // namespace ldem

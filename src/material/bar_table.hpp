@@ -102,7 +102,11 @@ public:
   // Density per module, or empty (uniform spec().rho).
   const std::vector<double>& rho_module() const { return rho_; }
 
+  // A bar's law (its e_p and e_r), its axial stiffness E A and its stiffness k = E A / l0, the
+  // boundary's area factor included.
   BilinearLaw law(const Lattice& lattice, index_t bar) const;
+  double axial_stiffness(const Lattice& lattice, index_t bar) const;
+  double stiffness(const Lattice& lattice, index_t bar) const;
   // A bar's material as a user reads it: E, Gf (its dissipation capacity over its fracture
   // area, eq. 11), e_p and e_r.
   struct Properties {

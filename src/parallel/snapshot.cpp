@@ -47,12 +47,12 @@ void SubdomainVtuWriter::write(const SubdomainRun& run, const std::string& path)
     o[2] = static_cast<float>(v.z);
   };
   for (const Span& s : nodes_) {
+    u_.resize(s.count);
+    v_.resize(s.count);
+    sim.node_states(s.local_first, s.count, u_.data(), v_.data());
     for (const bool velocity : {false, true}) {
-      buf_.resize(std::size_t{s.count} * 12);
-      auto* o = reinterpret_cast<float*>(buf_.data());
-      sim.for_each_node_state(s.local_first, s.count, [&](index_t n, Vec3 u, Vec3 v) {
-        vec3(o + 3 * std::size_t{n - s.local_first}, velocity ? v : u);
-      });
+      fill<float>(buf_, s.count, 3,
+                  [&](index_t q, float* o) { vec3(o, velocity ? v_[q] : u_[q]); });
       put(velocity ? VtuLayout::Velocity : VtuLayout::Displacement, s, 12);
     }
     fill<float>(buf_, s.count, 3,

@@ -26,6 +26,7 @@ private:
   std::vector<char> buf_;          // one span's values, reused
   std::vector<std::uint8_t> state_;
   std::vector<double> damage_, force_;
+  std::vector<Vec3> u_, v_; // one span's node states, reused
 };
 
 } // namespace ldem

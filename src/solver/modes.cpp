@@ -100,8 +100,9 @@ SparseMatrix assemble(const Simulation& sim, const std::vector<std::int64_t>& do
     if (sim.bar_state(bar) == BarState::Broken)
       continue;
     const FamilyInfo& fi = lat.family(lat.bar_address(bar).family);
-    const BilinearLaw law = table.law(lat, bar);
-    const double k = law.EA / law.l0; // E A / l0 with the boundary area factor
+    // E A / l0 with the boundary area factor
+    const double k = table.axial_stiffness(lat, bar) /
+                     table.family(static_cast<int>(lat.bar_address(bar).family)).l0;
     const double e[3] = {fi.d0.x / fi.l0, fi.d0.y / fi.l0, fi.d0.z / fi.l0};
     const auto [a, b] = lat.bar_nodes(bar);
     const double rsm_a = 1.0 / std::sqrt(sim.mass(a)), rsm_b = 1.0 / std::sqrt(sim.mass(b));

@@ -1,0 +1,321 @@
+// The bar pass (internal to the solver): s = F / l for the bars of a line from u_n and their
+// states, by the bar law `Law` (bar_law.hpp) or, for rows of pristine bars of a uniform
+// material, by the intact kernel; then the slow path: the law's state update and events of
+// the bars whose state changes.
+#pragma once
+
+#include "solver/core.hpp"
+#include "solver/intact_spring.hpp"
+
+#include <cmath>
+#include <omp.h>
+#include <type_traits>
+
+namespace ldem {
+
+struct RowView {
+  const double *uax, *uay, *uaz, *ubx, *uby, *ubz;
+  double* s;
+};
+
+// The general kernel: s = F / l for a row of n bars by the law. Returns true if some bar's
+// state changes (Law::changes), to be handled by the slow path. `k_row` is E A / l0 times the
+// area factor; per-bar arrays replace it when present (PerBar). `Intact`: every bar of the row
+// is pristine (its state is not read). With `Energy`, also the sum over the row of each bar's
+// elastic energy into *energy, from its force over length times w, w = 1 for inner bars and
+// `end_scale` for the first and last (the factor the caller applies to their forces
+// afterwards). (Inlined where it is called, as intact_row_kernel.)
+template <class Law, bool PerBar, bool Intact, bool Energy = false>
+[[gnu::always_inline]] inline bool
+bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
+               const std::array<const double*, Law::kStateArrays.size()>& states, Vec3 d0,
+               double l0, double k_row, const double* __restrict k_bar, double end_scale = 1.0,
+               double* energy = nullptr) {
+  const double inv_l0 = 1.0 / l0;
+  int past = 0; // an int, not a bool: GCC vectorises only arithmetic reductions
+  double sum = 0.0;
+  // The row's pointers in locals: read through `r` in the loop, GCC 12 loads them anew for
+  // every bar and gathers the rows lane by lane.
+  const double* __restrict uax = r.uax;
+  const double* __restrict uay = r.uay;
+  const double* __restrict uaz = r.uaz;
+  const double* __restrict ubx = r.ubx;
+  const double* __restrict uby = r.uby;
+  const double* __restrict ubz = r.ubz;
+  double* __restrict sr = r.s;
+  const typename Law::Row row = constants;
+  const std::array<const double*, Law::kStateArrays.size()> st = states;
+  const auto nn = static_cast<std::int64_t>(n);
+  // bar(i): 1 if bar i's state changes, and with Energy its term of the sum; the loops name
+  // only the reductions they have (GCC 12 vectorises neither with one that stays unused).
+  struct Term {
+    int past;
+    double energy;
+  };
+  const auto bar = [&](std::int64_t i) {
+    const Stretch g = stretch(d0.x + (ubx[i] - uax[i]), d0.y + (uby[i] - uay[i]),
+                              d0.z + (ubz[i] - uaz[i]), l0, inv_l0);
+    const Law law = Law::template at<PerBar>(row, i);
+    const typename Law::State s = Intact ? law.initial() : Law::read(st.data(), i);
+    const double si = law.force_over_length(PerBar ? k_bar[i] : k_row, g, s);
+    sr[i] = si;
+    Term t{law.changes(g.e, s) ? 1 : 0, 0.0};
+    if constexpr (Energy)
+      t.energy = law.elastic_energy((i == 0 || i + 1 == nn ? end_scale : 1.0) * si, g, s);
+    return t;
+  };
+  if constexpr (Energy) {
+    // (Both sums in doubles: GCC 12 vectorises no loop with an int and a double reduction.)
+    double passed = 0.0;
+#pragma omp simd reduction(+ : passed, sum)
+    for (std::int64_t i = 0; i < nn; ++i) {
+      const Term t = bar(i);
+      passed += t.past;
+      sum += t.energy;
+    }
+    past = passed > 0.0;
+  } else {
+#pragma omp simd reduction(+ : past)
+    for (std::int64_t i = 0; i < nn; ++i)
+      past += bar(i).past;
+  }
+  if constexpr (Energy)
+    *energy = sum;
+  return past > 0;
+}
+
+#pragma GCC diagnostic push
+// GCC 12's AVX-512 headers trip these warnings on _mm512_maskz_loadu_pd and
+// _mm512_reduce_max_pd (a known false alarm: their unused pass-through operand).
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
+
+// The common case: a row of pristine bars with uniform constants, a linear spring of stiffness
+// k below the law's elastic limit e_lim. Then s = k (l - l0) / l = k - k l0 / l, and the test
+// e > e_lim is l^2 > (l0 (1 + e_lim))^2, so the row needs 1 / sqrt(l^2) and nothing else: with
+// AVX-512 it comes from inv_sqrt, which keeps the divider free. Returns true if some bar may be
+// past e_lim (the caller then redoes the row with the general kernel). With `Energy`, also sum
+// w (l - l0)^2 over the row into *energy, w = 1 for inner bars and `end_scale` for the first and
+// last (their area factor over the row's). l2_max: the largest l^2 of the row's bars.
+// (Inlined where it is called: GCC 12 does not vectorise the portable loop's reductions in a
+// copy of its own.)
+template <bool Energy>
+[[gnu::always_inline]] inline bool
+intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_lim,
+                  double end_scale, double* energy, double& l2_max) {
+  // Slightly below the exact threshold, so that a bar at e_lim to within rounding is handed to
+  // the general kernel, whose strain test is the reference.
+  const double lp2 = l0 * l0 * (1.0 + e_lim) * (1.0 + e_lim) * (1.0 - 1e-12);
+#if defined(__AVX512F__)
+  const __m512d vx = _mm512_set1_pd(d0.x), vy = _mm512_set1_pd(d0.y), vz = _mm512_set1_pd(d0.z);
+  const __m512d vk = _mm512_set1_pd(k), vkl0 = _mm512_set1_pd(k * l0);
+  const __m512d vlp2 = _mm512_set1_pd(lp2);
+  __m512d acc = _mm512_setzero_pd(), top = _mm512_setzero_pd();
+  __mmask8 past = 0;
+  // Whole vectors with plain loads and stores, the row's tail (n not a multiple of 8) masked.
+  const auto vector = [&]<bool Tail>(index_t i, __mmask8 m) {
+    const auto load = [m](const double* p) {
+      return Tail ? _mm512_maskz_loadu_pd(m, p) : _mm512_loadu_pd(p);
+    };
+    const __m512d ux = _mm512_sub_pd(load(r.ubx + i), load(r.uax + i));
+    const __m512d uy = _mm512_sub_pd(load(r.uby + i), load(r.uay + i));
+    const __m512d uz = _mm512_sub_pd(load(r.ubz + i), load(r.uaz + i));
+    const __m512d dx = _mm512_add_pd(vx, ux), dy = _mm512_add_pd(vy, uy),
+                  dz = _mm512_add_pd(vz, uz);
+    const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
+    const __m512d y = inv_sqrt(l2);
+    const __m512d s = _mm512_fnmadd_pd(vkl0, y, vk);
+    if constexpr (Tail) {
+      _mm512_mask_storeu_pd(r.s + i, m, s);
+      past |= _mm512_mask_cmp_pd_mask(m, l2, vlp2, _CMP_GT_OQ);
+      top = _mm512_mask_max_pd(top, m, top, l2);
+    } else {
+      _mm512_storeu_pd(r.s + i, s);
+      past |= _mm512_cmp_pd_mask(l2, vlp2, _CMP_GT_OQ);
+      top = _mm512_max_pd(top, l2);
+    }
+    if constexpr (Energy) {
+      // Zero beyond the row's end, weighted at its ends.
+      __mmask8 ends = 0;
+      if (i == 0)
+        ends |= 1;
+      if (n - 1 - i < 8)
+        ends |= static_cast<__mmask8>(1u << (n - 1 - i));
+      acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, m, ends, end_scale);
+    }
+  };
+  index_t i = 0;
+  for (; i + 8 <= n; i += 8)
+    vector.template operator()<false>(i, 0xFF);
+  if (i < n)
+    vector.template operator()<true>(i, static_cast<__mmask8>((1u << (n - i)) - 1u));
+  if constexpr (Energy)
+    *energy = _mm512_reduce_add_pd(acc);
+  l2_max = _mm512_reduce_max_pd(top);
+  return past != 0;
+#else
+  int past = 0;
+  double sum = 0.0;
+  // bar(i) gives 1 if bar i is past e_lim, and with Energy its term of the sum; the loops name
+  // only the reductions they have (GCC 12 vectorises neither with one that stays unused).
+  struct Term {
+    int past;
+    double energy;
+  };
+  const auto bar = [&](index_t i) {
+    const double ux = r.ubx[i] - r.uax[i], uy = r.uby[i] - r.uay[i], uz = r.ubz[i] - r.uaz[i];
+    const double dx = d0.x + ux, dy = d0.y + uy, dz = d0.z + uz;
+    const double l2 = dx * dx + dy * dy + dz * dz;
+    const double l = std::sqrt(l2);
+    r.s[i] = k - k * l0 / l;
+    Term t{l2 > lp2 ? 1 : 0, 0.0};
+    if constexpr (Energy) { // as above
+      const double dl =
+          (ux * (ux + 2 * d0.x) + uy * (uy + 2 * d0.y) + uz * (uz + 2 * d0.z)) / (l + l0);
+      t.energy = (i == 0 || i + 1 == n ? end_scale : 1.0) * dl * dl;
+    }
+    return t;
+  };
+  if constexpr (Energy) {
+    double passed = 0.0; // (both sums in doubles, as in bar_row_kernel)
+#pragma omp simd reduction(+ : passed, sum)
+    for (index_t i = 0; i < n; ++i) {
+      const Term t = bar(i);
+      passed += t.past;
+      sum += t.energy;
+    }
+    past = passed > 0.0;
+    *energy = sum;
+  } else {
+#pragma omp simd reduction(+ : past)
+    for (index_t i = 0; i < n; ++i)
+      past += bar(i).past;
+  }
+  l2_max = std::numeric_limits<double>::infinity(); // (the fast path is off: kVectorKernel)
+  return past > 0;
+#endif
+}
+
+// A bar's length after this step's motion is at most its length now plus the motion of its
+// two nodes: l_{n+1} <= l_n + |u_{n+1} - u_n|_a + |u_{n+1} - u_n|_b. At the start of step n+1
+// the row knows the largest (l_n / l_p)^2 of its bars (row_ratio, measured by whichever pass
+// computed them at step n) and its node rows' largest motion in step n (node_row_motion), so
+// if sqrt(ratio) + (motion_a + motion_b) / l_p stays below 1 no bar of the row can pass its
+// elastic limit, and the pristine spring alone gives its force. The margin of 1e-9 covers the
+// rounding of those sums (a few units of 1e-16) and keeps the bars clear of the intact
+// kernel's own threshold, l_p^2 (1 - 1e-12). An unknown ratio or motion is infinite, which
+// fails the test.
+inline bool bar_row_stays_intact(const SimulationCore& core, std::size_t r) {
+  constexpr double kMargin = 1.0 - 1e-9;
+  const auto [a, b] = core.layout.bar_row_nodes[r];
+  // sqrt(ratio) + m <= margin, in squares (m <= margin first, which also fails on a NaN).
+  const double m = (core.node_row_motion[a] + core.node_row_motion[b]) * core.layout.row_inv_lp[r];
+  return !core.row_damaged[r] && m <= kMargin && core.row_ratio[r] <= (kMargin - m) * (kMargin - m);
+}
+
+// The bar rows of a line into its plane's force buffer `s_plane`; with `energies`, the elastic
+// energy of each row into energy_rows_u. Rows whose bars take the intact fast path this step
+// (row_fast) are left to the node pass.
+template <class Law>
+void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool energies) {
+  constexpr std::size_t kStates = Law::kStateArrays.size();
+  const std::size_t begin = core.layout.lines[line].bar_begin,
+                    end = core.layout.lines[line].bar_end;
+  const bool per_bar = core.table.per_bar();
+  const double* kb = per_bar ? core.table.k_bar().data() : nullptr;
+  const std::uint64_t step = core.step;
+  std::vector<Event>& events = core.thread_events[static_cast<std::size_t>(omp_get_thread_num())];
+  bool all_fast = true;
+  for (std::size_t r = begin; r < end; ++r) {
+    core.row_fast[r] = core.fast_path && bar_row_stays_intact(core, r);
+    all_fast = all_fast && core.row_fast[r];
+  }
+  core.line_fast[line] = all_fast;
+  for (std::size_t r = begin; r < end; ++r) {
+    if (core.row_fast[r])
+      continue;
+    const BarRow& row = core.layout.bar_rows[r];
+    const FamilyInfo& fi = core.lat.family(row.family);
+    const FamilyMaterial& mat = core.table.family(row.family);
+    const index_t b0 = core.first_bar(r);
+    const std::size_t a0 = row.a_slot, c0 = row.b_slot;
+    const RowView v{core.ux.data() + a0,
+                    core.uy.data() + a0,
+                    core.uz.data() + a0,
+                    core.ux.data() + c0,
+                    core.uy.data() + c0,
+                    core.uz.data() + c0,
+                    s_plane + fi.plane_offset + std::size_t{fi.plane_stride} * row.j};
+    const typename Law::Row constants = Law::row(core.table, row.family, b0);
+    const std::array<double*, kStates> states = core.state_rows<kStates>(b0);
+    std::array<const double*, kStates> read_states{};
+    std::copy(states.begin(), states.end(), read_states.begin());
+    const index_t n = fi.ni;
+    const bool intact = !core.row_damaged[r];
+    bool past;
+    // On a report step the kernels also give the row's elastic energy, its displacements
+    // still in cache: the intact kernel sum w (l - l0)^2, the general kernel the law's.
+    double intact_sum = 0.0, law_sum = 0.0;
+    const double k = mat.k * row.factor, scale = per_bar ? 1.0 : row.end_factor / row.factor;
+    // The general kernel; a material that varies per bar has its area factors in k_bar.
+    const auto general = [&](auto per_bar_c, auto intact_c) {
+      constexpr bool P = decltype(per_bar_c)::value, I = decltype(intact_c)::value;
+      const double* kr = P ? kb + b0 : nullptr;
+      return energies
+                 ? bar_row_kernel<Law, P, I, true>(n, v, constants, read_states, fi.d0, fi.l0, k,
+                                                   kr, scale, &law_sum)
+                 : bar_row_kernel<Law, P, I>(n, v, constants, read_states, fi.d0, fi.l0, k, kr);
+    };
+    using yes = std::true_type;
+    using no = std::false_type;
+    bool by_law = true;
+    if (per_bar) {
+      past = intact ? general(yes{}, yes{}) : general(yes{}, no{});
+    } else {
+      double l2_max = kUnknown;
+      const double e_lim = constants.family.elastic_limit();
+      past =
+          intact &&
+          (energies
+               ? intact_row_kernel<true>(n, v, fi.d0, fi.l0, k, e_lim, scale, &intact_sum, l2_max)
+               : intact_row_kernel<false>(n, v, fi.d0, fi.l0, k, e_lim, 1.0, nullptr, l2_max));
+      core.row_ratio[r] = l2_max * (core.layout.row_inv_lp[r] * core.layout.row_inv_lp[r]);
+      by_law = !intact || past;
+      if (by_law)
+        past = general(no{}, no{});
+      if (row.end_factor != row.factor) {
+        v.s[0] *= scale;
+        v.s[n - 1] *= scale;
+      }
+      if (energies && !by_law)
+        core.energy_rows_u[r] = 0.5 * k * intact_sum; // U = k (l - l0)^2 / 2, area factors in w
+    }
+    if (energies && by_law)
+      core.energy_rows_u[r] = law_sum;
+    if (!past)
+      continue;
+    // Slow path: some bar's state changes. Its stretch again, the law's update and events. The
+    // force the kernel gave already holds for the new state (the law's contract: the update
+    // changes no force at the strain that caused it).
+    const double inv_l0 = 1.0 / fi.l0;
+    for (index_t i = 0; i < n; ++i) {
+      const Stretch g = stretch(fi.d0.x + (v.ubx[i] - v.uax[i]), fi.d0.y + (v.uby[i] - v.uay[i]),
+                                fi.d0.z + (v.ubz[i] - v.uaz[i]), fi.l0, inv_l0);
+      const Law law =
+          per_bar ? Law::template at<true>(constants, i) : Law::template at<false>(constants, i);
+      typename Law::State s = Law::read(states.data(), i);
+      const double eold = (g.l - fi.l0) / fi.l0;
+      if (!law.changes(eold, s))
+        continue;
+      law.update(eold, s, [&](BarState to) { events.push_back({b0 + i, to, step}); });
+      Law::write(states.data(), i, s);
+      if (!law.pristine(s))
+        core.row_damaged[r] = 1;
+      core.row_history_changed[r] = 1;
+    }
+  }
+}
+
+#pragma GCC diagnostic pop
+
+} // namespace ldem

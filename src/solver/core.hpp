@@ -1,0 +1,152 @@
+// The inside of a Simulation (internal to the solver): its state, the step's layout and
+// tables, the boundary conditions as the step applies them, the buffers and the energy sums.
+// The public face is solver/simulation.hpp; the step's passes (bar_pass.hpp, node_pass.hpp,
+// walk.hpp), the boundary conditions (boundary.cpp) and the evaluations outside the step
+// (bar_evaluation.hpp) work on this.
+#pragma once
+
+#include "energy/ledger.hpp"
+#include "solver/simulation.hpp"
+#include "solver/step_layout.hpp"
+#include "util/aligned.hpp"
+
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace ldem {
+
+// A strain ratio or a motion not yet measured: the intact fast path waits for it.
+inline constexpr double kUnknown = std::numeric_limits<double>::infinity();
+
+// Whether the node kernel is the AVX-512 one, which takes fast links and can also move the
+// nodes (node_row_forces).
+#if defined(__AVX512F__)
+inline constexpr bool kVectorKernel = true;
+#else
+inline constexpr bool kVectorKernel = false;
+#endif
+
+// The boundary conditions and loads as the step applies them (boundary.cpp).
+struct Boundary {
+  // Slots of the nodes of each imposed velocity and each load.
+  std::vector<std::vector<std::size_t>> velocity_slots, load_slots;
+  // The bar forces gathered at the nodes of the rows with imposed-velocity nodes (x, y and z
+  // runs of each such row, from imposed_row[r], -1 for other rows), and where each imposed
+  // node's lie (its x place and its row's length).
+  std::vector<std::int64_t> imposed_row;
+  std::vector<double> imposed_force;
+  std::vector<std::vector<std::pair<std::size_t, index_t>>> imposed_force_at;
+  // The node row of each imposed-velocity node; per node row, the largest squared motion of
+  // the DOF one condition imposes on its nodes in this step (condition_motion, scratch), and
+  // those summed over the conditions (imposed_motion; apply_velocities adds it to the row's
+  // motion).
+  std::vector<std::vector<std::uint32_t>> imposed_node_row;
+  std::vector<double> imposed_motion, condition_motion;
+  // Imposed-velocity nodes: velocity before the node pass.
+  std::vector<std::vector<Vec3>> imposed_v_old;
+  // Sums over the imposed-velocity DOF of the current step (apply_velocities).
+  ExactSum work, work_half, damping, kinetic;
+};
+
+struct SimulationCore {
+  SimulationCore(Lattice lattice, BarTable table, Conditions conditions, SolverOptions options);
+
+  Lattice lat;
+  BarTable table;
+  Conditions cond;
+  SolverOptions opt;
+  StableStep stable;
+  double dt = 0.0;
+  std::uint64_t step = 0;
+  StepLayout layout;
+
+  // Node arrays of the step loop (structure of arrays, indexed by slot): u_n, and u_{n-1}
+  // (overwritten by u_{n+1} during a step, then the two are swapped):
+  // v_{n-1/2} = (u_n - u_{n-1}) / dt, so no velocity array is streamed.
+  AlignedVector<double> ux, uy, uz, wx, wy, wz;
+  AlignedVector<double> mass, inv_mass;
+  AlignedVector<DofMask> held;        // DOF fixed, imposed or held by plane strain
+  AlignedVector<double> px, py, pz;   // nodal loads at t_n (only with loads)
+  std::vector<std::uint8_t> row_held; // per node row: some DOF is fixed or imposed
+  Boundary bc;
+
+  // The law's per-bar state arrays (LawKernels::state_arrays), the only per-bar state. The
+  // bars' force over current length s = F / l lives only in per-thread plane buffers during a
+  // step (see advance_rows).
+  std::vector<std::vector<double>> states;
+  // Per bar row: some bar is not pristine (the law's pristine()): the row takes the general
+  // kernel.
+  std::vector<std::uint8_t> row_damaged;
+  // The intact fast path (SolverOptions::intact_at_nodes; bar_row_stays_intact). Per bar row:
+  // whether its bars take it in this step and the largest (l / l_p)^2 of its bars when last
+  // evaluated (infinite when not known). Per line: whether all its bar rows take the fast path.
+  // Per node row: the largest |u_{n+1} - u_n| of its nodes in the last step (infinite when not
+  // known).
+  bool fast_path = false;
+  std::vector<std::uint8_t> row_fast, line_fast;
+  std::vector<double> row_ratio;
+  std::vector<double> node_row_motion;
+
+  int threads = 1;
+  // fx, fy, fz, fw, three free-DOF rows and the nodes' motion, each of scratch_stride (the
+  // report's bar energies use the first two too)
+  mutable std::vector<AlignedVector<double>> thread_scratch;
+  std::size_t scratch_stride = 0;
+  std::vector<AlignedVector<double>> plane_buffers; // 3 per thread: two alternating, one top
+  // 2 per thread: one bar line per plane, packed (the block's carry, the edge a neighbour reads)
+  std::vector<std::vector<double>> line_stores;
+  std::int64_t block_lines = 1; // lines per block of the walk (advance_rows)
+  std::vector<std::vector<Event>> thread_events;
+
+  // Per-row partial sums (deterministic reductions).
+  std::vector<double> row_damping, row_load_mid, row_load_half, row_kinetic;
+  std::vector<double> energy_rows_u, energy_rows_d; // per-row sums of the last report
+  // Per bar row: the dissipated energy of its bars when last summed, and whether a state of
+  // the row has changed since (set by the bar pass and by mark_damaged_rows).
+  std::vector<double> row_dissipated;
+  std::vector<std::uint8_t> row_history_changed;
+  mutable std::vector<std::uint8_t> snapshot_by_law; // bar_snapshot: intact rows past e_lim now
+  mutable std::vector<std::size_t> law_rows;         // the rows taken through the bar law
+  ExactSum report_work, report_damping2;             // of the last report (see report_work)
+  Ledger ledger;
+  EnergyReport report{};
+
+  std::size_t slot(index_t node) const { return layout.slot(lat, node); }
+  template <class F> void for_each_run(index_t first, index_t count, F&& visit) const {
+    layout.for_each_run(lat, first, count, visit);
+  }
+  std::size_t node_row_of(index_t node) const { return layout.node_row_of(lat, node); }
+  // The last step's motion of the rows of nodes [first, first + count) made unknown (their
+  // bars then take the bar pass until a step has measured it again).
+  void forget_motion(index_t first, index_t count);
+  // The first bar of bar row r.
+  index_t first_bar(std::size_t r) const {
+    const BarRow& row = layout.bar_rows[r];
+    return lat.bar(static_cast<Family>(row.family), 0, row.j, row.k);
+  }
+  // The law's state arrays from bar b0 on.
+  template <std::size_t N> std::array<double*, N> state_rows(index_t b0) {
+    std::array<double*, N> p{};
+    for (std::size_t a = 0; a < N; ++a)
+      p[a] = states[a].data() + b0;
+    return p;
+  }
+  template <std::size_t N> std::array<const double*, N> state_rows(index_t b0) const {
+    std::array<const double*, N> p{};
+    for (std::size_t a = 0; a < N; ++a)
+      p[a] = states[a].data() + b0;
+    return p;
+  }
+};
+
+// Conditions as the step applies them: the node sets checked, held DOF marked, the imposed
+// rows and their tables (boundary.cpp). Throws InputError for an empty set, a missing node or
+// a bad plane-strain axis.
+std::vector<DofMask> build_boundary(SimulationCore& core);
+// Nodal loads at time t into px, py, pz.
+void apply_loads(SimulationCore& core, double t);
+// Imposed velocities at t_{n+1/2} and their reactions' work (into c.bc's sums).
+void apply_velocities(SimulationCore& core, double t, bool report);
+
+} // namespace ldem

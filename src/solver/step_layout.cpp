@@ -1,0 +1,207 @@
+#include "solver/step_layout.hpp"
+
+#include "util/aligned.hpp"
+
+#include <cmath>
+
+namespace ldem {
+
+std::size_t StepLayout::node_row_of(const Lattice& lat, index_t node) const {
+  const NodeAddress a = lat.node_address(node);
+  // Line (j, k) holds its corner row, then its centre row if it has one.
+  return lines[a.j + (lat.ny() + 1ull) * a.k].node_begin + (a.centre ? 1 : 0);
+}
+
+namespace {
+
+// The kinds of node rows and each row's links (link_const, edge_lanes, row_kinds, row_kind,
+// link_ref), from the bar rows (in (k, j, family) order, `row_at`).
+void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
+                     const std::array<double, kFamilies>& elastic_limit,
+                     const std::vector<std::uint32_t>& row_at) {
+  const auto same = [](const LinkConst& a, const LinkConst& b) {
+    return a.rx == b.rx && a.ry == b.ry && a.rz == b.rz && a.k == b.k && a.l0 == b.l0 &&
+           a.kl0 == b.kl0 && a.scale == b.scale && a.lw2 == b.lw2 && a.ilo == b.ilo &&
+           a.ihi == b.ihi && a.dk == b.dk && a.first_node == b.first_node;
+  };
+  out.link_ref.resize(kMaxRowLinks * out.node_rows.size());
+  out.row_kind.resize(out.node_rows.size());
+  for (std::size_t r = 0; r < out.node_rows.size(); ++r) {
+    RowLink links[kMaxRowLinks];
+    const int nl = row_links(lat, out.node_rows[r], links, out.slots);
+    LinkConst kind[kMaxRowLinks]{};
+    const std::int64_t n = out.node_rows[r].length;
+    std::int64_t lo = 0, hi = n;
+    for (int l = 0; l < nl; ++l) {
+      const RowLink& L = links[l];
+      const BarAddress a = lat.bar_address(static_cast<index_t>(L.bar_base + L.ilo));
+      const std::uint32_t br =
+          row_at[(a.k * (lat.ny() + 1ull) + a.j) * kFamilies + static_cast<std::size_t>(a.family)];
+      const BarRow& row = out.bar_rows[br];
+      const FamilyInfo& fi = lat.family(row.family);
+      const double k = table.family(row.family).k * row.factor;
+      const double scale = table.per_bar() ? 1.0 : row.end_factor / row.factor;
+      const double lw = fi.l0 * (1.0 + 0.5 * elastic_limit[static_cast<std::size_t>(row.family)]);
+      kind[l] = {L.r0.x,
+                 L.r0.y,
+                 L.r0.z,
+                 k,
+                 fi.l0,
+                 k * fi.l0,
+                 scale,
+                 lw * lw,
+                 L.ilo,
+                 L.ihi,
+                 L.dk,
+                 lat.bar_nodes(static_cast<index_t>(L.bar_base + L.ilo))[0] ==
+                     out.node_rows[r].first + L.ilo};
+      out.link_ref[kMaxRowLinks * r + l] = {L.other_base, br,
+                                            static_cast<std::int32_t>(L.plane_base)};
+      // A first or last bar with a factor of its own needs its lane scaled.
+      const std::int64_t own = scale != 1.0 ? 1 : 0;
+      lo = std::max(lo, std::int64_t{L.ilo} + own);
+      hi = std::min(hi, std::int64_t{L.ihi} - own);
+    }
+    std::size_t t = 0;
+    while (t < out.row_kinds.size() &&
+           !(out.row_kinds[t].n == n && out.row_kinds[t].links == nl &&
+             std::equal(kind, kind + nl, &out.link_const[kMaxRowLinks * t], same)))
+      ++t;
+    if (t == out.row_kinds.size()) {
+      // Fewer than 7 links (the corner rows along a box's x edges have 6, rows of a box a
+      // module wide fewer): padded to 7 with links no lane has.
+      if (nl < 7)
+        lo = hi = 0;
+      hi = std::max(lo, hi);
+      out.row_kinds.push_back({n, nl, lo, hi, out.edge_lanes.size()});
+      out.link_const.insert(out.link_const.end(), kind, kind + kMaxRowLinks);
+      const auto lane = [](std::int64_t at, std::int64_t i) {
+        return at >= i && at < i + 8 ? static_cast<std::uint8_t>(1u << (at - i)) : std::uint8_t{0};
+      };
+      for (std::int64_t i = 0; i < n; i += 8) {
+        if (i >= lo && i + 8 <= hi)
+          continue;
+        for (int l = 0; l < kMaxRowLinks; ++l) {
+          const LinkConst& L = kind[l];
+          EdgeLanes e{0, 0, 0};
+          for (std::int64_t q = std::max(L.ilo, i); q < std::min(L.ihi, i + 8); ++q)
+            e.has = static_cast<std::uint8_t>(e.has | (1u << (q - i)));
+          if (L.scale != 1.0) {
+            e.first = lane(L.ilo, i);
+            e.last = lane(L.ihi - 1, i);
+          }
+          out.edge_lanes.push_back(e);
+        }
+      }
+    }
+    out.row_kind[r] = static_cast<std::uint16_t>(t);
+  }
+}
+
+} // namespace
+
+StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
+                             const std::array<double, kFamilies>& elastic_limit) {
+  StepLayout out;
+  // The step loop's node arrays: the lattice's rows of nodes, each from a cache line on.
+  out.slots = {static_cast<std::int64_t>(round_up_to_line(lat.nx() + 1ull)),
+               static_cast<std::int64_t>(round_up_to_line(lat.nx())), 0};
+  out.slots.centre_first = out.slots.corner_row * (lat.ny() + 1ll) * (lat.nz() + 1ll);
+  out.slot_count =
+      static_cast<std::size_t>(out.slots.centre_first + out.slots.centre_row * lat.ny() * lat.nz());
+
+  // A node row needs bar rows of its own line and the line below, in its plane and the plane
+  // below, so the bar forces it reads were computed moments before.
+  for (const NodeRow& row : node_rows(lat))
+    out.node_rows.push_back(row);
+  std::stable_sort(
+      out.node_rows.begin(), out.node_rows.end(),
+      [](const NodeRow& a, const NodeRow& b) { return a.k != b.k ? a.k < b.k : a.j < b.j; });
+  for (index_t k = 0; k <= lat.nz(); ++k)
+    for (index_t j = 0; j <= lat.ny(); ++j)
+      for (int f = 0; f < kFamilies; ++f) {
+        const FamilyInfo& fi = lat.family(f);
+        if (k >= fi.nk || j >= fi.nj)
+          continue;
+        const auto fam = static_cast<Family>(f);
+        // Along a row (i running) an edge bar's area factor changes only at i = 0 and
+        // i = ni - 1 (EdgeY, EdgeZ: the x faces); inside it is that of i = 1.
+        const double inner = lat.area_factor(fam, std::min<index_t>(1, fi.ni - 1), j, k);
+        out.bar_rows.push_back({f, j, k, inner, lat.area_factor(fam, 0, j, k),
+                                out.slot(lat, fi.a.at(0, j, k)), out.slot(lat, fi.b.at(0, j, k))});
+      }
+  // The links of every node row, computed once (they cost more to derive than to read), their
+  // bar rows (in (k, j, family) order) and pristine springs; rows of one kind share their
+  // constants.
+  std::vector<std::uint32_t> row_at((lat.nz() + 1ull) * (lat.ny() + 1ull) * kFamilies, 0);
+  out.row_inv_lp.resize(out.bar_rows.size());
+  out.row_watch.resize(out.bar_rows.size());
+  out.row_first_centre.resize(out.bar_rows.size());
+  for (std::size_t r = 0; r < out.bar_rows.size(); ++r) {
+    const BarRow& row = out.bar_rows[r];
+    row_at[(row.k * (lat.ny() + 1ull) + row.j) * kFamilies + static_cast<std::size_t>(row.family)] =
+        static_cast<std::uint32_t>(r);
+    const double l0 = lat.family(row.family).l0;
+    const double e_lim = elastic_limit[static_cast<std::size_t>(row.family)];
+    out.row_inv_lp[r] = 1.0 / (l0 * (1.0 + e_lim));
+    const double lw = l0 * (1.0 + 0.5 * e_lim); // the watch length (LinkConst)
+    // (A law without an elastic limit: no bar is ever near it.)
+    out.row_watch[r] = std::isinf(e_lim) ? 0.0 : lw * lw * out.row_inv_lp[r] * out.row_inv_lp[r];
+    out.row_first_centre[r] = row.family >= static_cast<int>(Family::CentreX);
+  }
+  build_row_links(out, lat, table, elastic_limit, row_at);
+  // Where the portable kernel can take a whole row in one pass, from the bar pass's buffers: a
+  // link missing at a row's end reads a zero pad of the plane buffer (s = 0) and a neighbouring
+  // slot's finite displacement, so that holds wherever those reads stay inside the lattice's
+  // nodes in its own numbering (all rows but the first corner row and the rows that reach the
+  // end of the last centre row), which keeps them inside the slots too (a row's slots start
+  // and end no earlier than its nodes do).
+  out.row_whole.assign(out.node_rows.size(), 0);
+  for (std::size_t r = 0; r < out.node_rows.size(); ++r) {
+    RowLink links[kMaxRowLinks];
+    const int nl = row_links(lat, out.node_rows[r], links);
+    // (A row with fewer than 7 links is padded to 7 with a link that no node has; the whole-row
+    // pass would read that link's s from the start of the plane buffer.)
+    bool whole = nl >= 7;
+    for (int l = 0; l < nl; ++l)
+      whole = whole && links[l].other_base >= 0 &&
+              links[l].other_base + out.node_rows[r].length <= std::int64_t{lat.num_nodes()};
+    out.row_whole[r] = whole;
+  }
+  // Row ranges of each line (j, k), and the lines of each plane k.
+  out.planes.assign(lat.nz() + 1ull, {0, 0});
+  std::size_t br = 0, nr = 0;
+  for (index_t k = 0; k <= lat.nz(); ++k) {
+    out.planes[k].line_begin = out.lines.size();
+    for (index_t j = 0; j <= lat.ny(); ++j) {
+      Line line{br, br, nr, nr};
+      while (line.bar_end < out.bar_rows.size() && out.bar_rows[line.bar_end].k == k &&
+             out.bar_rows[line.bar_end].j == j)
+        ++line.bar_end;
+      while (line.node_end < out.node_rows.size() && out.node_rows[line.node_end].k == k &&
+             out.node_rows[line.node_end].j == j)
+        ++line.node_end;
+      br = line.bar_end;
+      nr = line.node_end;
+      out.lines.push_back(line);
+    }
+    out.planes[k].line_end = out.lines.size();
+  }
+  out.bar_row_nodes.resize(out.bar_rows.size());
+  for (std::size_t r = 0; r < out.bar_rows.size(); ++r) {
+    const BarRow& row = out.bar_rows[r];
+    const FamilyInfo& fi = lat.family(row.family);
+    out.bar_row_nodes[r] = {
+        static_cast<std::uint32_t>(out.node_row_of(lat, fi.a.at(0, row.j, row.k))),
+        static_cast<std::uint32_t>(out.node_row_of(lat, fi.b.at(0, row.j, row.k)))};
+  }
+  for (const Line& line : out.lines) {
+    std::size_t n = 0;
+    for (std::size_t r = line.bar_begin; r < line.bar_end; ++r)
+      n += lat.family(out.bar_rows[r].family).ni;
+    out.line_store_stride = std::max(out.line_store_stride, n);
+  }
+  return out;
+}
+
+} // namespace ldem

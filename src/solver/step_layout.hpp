@@ -1,0 +1,134 @@
+// The step's layout (internal to the solver): where the nodes lie in the step's arrays, the
+// rows of bars and nodes in the order the step visits them, each node row's links as the node
+// kernel reads them, and the lines and planes the walk takes. All of it follows from the
+// lattice and the material's constants and does not change during a run.
+#pragma once
+
+#include "lattice/lattice.hpp"
+#include "material/bar_table.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace ldem {
+
+// A link of a node row (see RowLink) as the step's node kernel reads it. What does not depend
+// on where the row lies, only on its kind (corner or centre) and the faces it touches: the
+// reference vector from the row's node to the other; the pristine spring of the link's bars
+// (bar_law.hpp), s = k - kl0 / l with kl0 = k l0, and s times `scale` (their area factor over
+// the row's) for the first and last bars of their bar row (nodes ilo and ihi - 1); the nodes
+// [ilo, ihi) that have the link; which plane buffer holds the bars' forces when the bar pass
+// computes them (dk = 0: the row's plane, -1: the one below); whether the row's nodes are the
+// bars' first nodes; and the watch length lw = l0 (1 + e_lim / 2), e_lim the law's elastic
+// limit: the kernel tells whether some bar is longer (lw2 = lw^2).
+struct LinkConst {
+  double rx, ry, rz, k, l0, kl0, scale, lw2;
+  std::int64_t ilo, ihi;
+  int dk;
+  bool first_node;
+};
+
+// The lanes of a vector of 8 nodes at a row's end, for one link: those whose nodes have the
+// link, and those whose bar is the first or the last of its bar row with a factor of its own.
+struct EdgeLanes {
+  std::uint8_t has, first, last;
+};
+
+// The rest, per row: node i's other node is slot other + i, the force over length of node i's
+// bar (from the bar pass) at plane_base + i of a plane buffer, and the bars' row.
+struct LinkRef {
+  std::int64_t other;
+  std::uint32_t bar_row;
+  std::int32_t plane_base;
+};
+
+// A kind of node row: its length and links; the vectors of 8 nodes from i = lo on and ending
+// by hi have every link on every lane and no end bar to scale; the others, in order, take
+// their lanes from StepLayout::edge_lanes (kMaxRowLinks per such vector, from edge_begin on).
+struct RowKind {
+  std::int64_t n;
+  int links;
+  std::int64_t lo, hi;
+  std::size_t edge_begin;
+};
+
+// A row of bars: family f, i running, at (j, k).
+struct BarRow {
+  int family;
+  index_t j, k;
+  double factor, end_factor;  // area factors of the row's bars (inner, first/last)
+  std::size_t a_slot, b_slot; // slots of the first and second nodes of the row's bar i = 0
+};
+
+// Row ranges of each line (fixed j, k) and the lines of each k-plane.
+struct Line {
+  std::size_t bar_begin, bar_end, node_begin, node_end;
+};
+struct Plane {
+  std::size_t line_begin, line_end;
+};
+
+struct StepLayout {
+  // A node's place in the step loop's node arrays, which hold each row of nodes from a cache
+  // line on (the lattice's rows, each padded to whole lines of 8 doubles; the padding stays
+  // zero), so that a row's vectors load and store whole lines.
+  RowNumbering slots;
+  std::size_t slot_count = 0;
+  // Rows in the order the step visits them: plane by plane (k), and in a plane line by line
+  // (j): the bar rows (f, j, k) of every family, then the corner and centre node rows (j, k).
+  std::vector<NodeRow> node_rows;
+  std::vector<BarRow> bar_rows;
+  std::vector<Line> lines;
+  std::vector<Plane> planes;
+  // The links of the node rows: LinkConst once per kind of row (kMaxRowLinks each), LinkRef per
+  // row (kMaxRowLinks each), the kind of each row, and whether the portable kernel can take a
+  // whole row in one pass.
+  std::vector<LinkConst> link_const;
+  std::vector<EdgeLanes> edge_lanes;
+  std::vector<RowKind> row_kinds;
+  std::vector<std::uint16_t> row_kind;
+  std::vector<std::uint8_t> row_whole;
+  std::vector<LinkRef> link_ref;
+  // Per bar row: the node rows of its first and second nodes, whether its first nodes are
+  // centres (else corners), 1 / l_p with l_p = l0 (1 + e_lim) the length at which its bars
+  // leave the law's elastic range, and the largest (l / l_p)^2 a bar no longer than its watch
+  // length can have ((lw / l_p)^2, see LinkConst).
+  std::vector<std::array<std::uint32_t, 2>> bar_row_nodes;
+  std::vector<std::uint8_t> row_first_centre;
+  std::vector<double> row_inv_lp, row_watch;
+  std::size_t line_store_stride = 0; // the most bars a line has
+
+  std::size_t slot(const Lattice& lat, index_t node) const {
+    const index_t nc = lat.num_corners(), nx = lat.nx();
+    if (node < nc)
+      return static_cast<std::size_t>(slots.corner_row) * (node / (nx + 1)) + node % (nx + 1);
+    const index_t m = node - nc;
+    return static_cast<std::size_t>(slots.centre_first + slots.centre_row * (m / nx)) + m % nx;
+  }
+  // visit(first slot, first node, count) for the runs of nodes [first, first + count) that lie
+  // in one row.
+  template <class F>
+  void for_each_run(const Lattice& lat, index_t first, index_t count, F&& visit) const {
+    const index_t nc = lat.num_corners(), end = first + count;
+    for (index_t n = first; n < end;) {
+      const index_t row = n < nc ? lat.nx() + 1 : lat.nx();
+      const index_t i = n < nc ? n % row : (n - nc) % row;
+      const index_t run = std::min(end - n, row - i);
+      visit(slot(lat, n), n, run);
+      n += run;
+    }
+  }
+  // The node row of a node.
+  std::size_t node_row_of(const Lattice& lat, index_t node) const;
+};
+
+// The layout of a lattice's step. `elastic_limit[f]`: the strain up to which a pristine bar of
+// family f stays a linear spring (the law's, for the family's constants; infinite for a law
+// without one); `k` and the area factors come from the table.
+StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
+                             const std::array<double, kFamilies>& elastic_limit);
+
+} // namespace ldem
