@@ -70,13 +70,6 @@ std::string how(const NodeSetSpec& s) {
   return "all nodes";
 }
 
-const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name) {
-  for (const NodeSet& s : sets)
-    if (s.name == name)
-      return s;
-  throw InputError("node set \"" + name + "\" is not defined");
-}
-
 std::string dofs_text(DofMask m) {
   std::string s;
   for (int d = 0; d < 3; ++d)
@@ -86,6 +79,13 @@ std::string dofs_text(DofMask m) {
 }
 
 } // namespace
+
+const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name) {
+  for (const NodeSet& s : sets)
+    if (s.name == name)
+      return s;
+  throw InputError("node set \"" + name + "\" is not defined");
+}
 
 BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&)>& adjust,
                      bool with_simulation) {
@@ -138,7 +138,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     const char* names[] = {"material.E", "material.Gf", "material.e_p", "material.e_r",
                            "material.R_f"};
     // Evaluated over the whole body only where it is built: a distributed run's other
-    // processes evaluate their windows (RunBody).
+    // processes evaluate their windows (run_body_distributed.cpp).
     for (int i = 0; i < 5; ++i)
       if (const auto& f = *props[i].first) {
         validate_field(*f, lat, names[i]);
@@ -904,12 +904,12 @@ int guarded_loop(const std::function<int()>& loop) {
 // processes agree on whether it could be built).
 std::unique_ptr<RunBody> make_body(BuiltCase& c, ProcessGrid asked) {
   if (process_count() == 1)
-    return std::make_unique<RunBody>(c);
+    return make_serial_body(c);
   std::unique_ptr<RunBody> body;
   if (!agreed([&] {
         const ProcessGrid grid =
             resolve_grid(c.lattice->ny(), c.lattice->nz(), process_count(), asked);
-        body = std::make_unique<RunBody>(c, grid, process_rank());
+        body = make_distributed_body(c, grid, process_rank());
       }) ||
       !agreed([&] { body->agree_on_body(); }))
     return nullptr;

@@ -31,6 +31,9 @@ struct BuiltCase {
   SolverOptions options;
 };
 
+// The node set named `name` among `sets`; throws InputError when there is none.
+const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name);
+
 // Throws InputError unless the case's time.end holds at least one step of dt.
 void check_end_time(const BuiltCase& c, double dt);
 
