@@ -1,5 +1,7 @@
-// `ldem check`, `ldem run`, `ldem plot` and `ldem modes`: from a case file to an output folder
-// (or, for check and modes, to a report on the terminal).
+// `ldem check`, `ldem run`, `ldem resume`, `ldem plot` and `ldem modes`: from a case file to an
+// output folder (or, for check and modes, to a report on the terminal). A case is built in
+// case_build.cpp, the commands are in commands.cpp, and the time-step loop of run and resume
+// in run_loop.cpp, stepping a RunBody (run_body.hpp).
 #pragma once
 
 #include "io/case_spec.hpp"
@@ -30,6 +32,9 @@ struct BuiltCase {
   Conditions conditions;
   SolverOptions options;
 };
+
+// The node set named `name` among `sets`; throws InputError when there is none.
+const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name);
 
 // Throws InputError unless the case's time.end holds at least one step of dt.
 void check_end_time(const BuiltCase& c, double dt);

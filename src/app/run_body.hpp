@@ -1,5 +1,6 @@
-// The body a case run steps: the case's Simulation in one process, or one subdomain per
-// process of a distributed run (src/parallel/subdomain.hpp); no process holds the whole body.
+// The body a case run steps: the case's Simulation in one process (run_body_serial.cpp), or
+// one subdomain per process of a distributed run (run_body_distributed.cpp,
+// src/parallel/subdomain.hpp); no process holds the whole body.
 //
 // In a distributed run every member is collective: all processes call them in the same
 // order. What the outputs need comes to the first process:
@@ -12,64 +13,66 @@
 // - fields.csv from the sampled bars each process owns.
 // VTU snapshots (src/parallel/snapshot.hpp) and checkpoints (io/checkpoint.hpp) are written
 // by every process into the one file, each value at its place.
+//
+// What both bodies share is written once, here (run_body.cpp): the checkpoint file, from the
+// pieces of the body's arrays each process owns; fields.csv from the rows the first process
+// has; the counts of softening and broken bars; the probes that need no simulation.
 #pragma once
 
 #include "app/case_run.hpp"
-#include "io/output.hpp"
-#include "parallel/snapshot.hpp"
+#include "energy/ledger.hpp"
 #include "parallel/subdomain.hpp"
 
 #include <array>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace ldem {
 
 class RunBody {
 public:
-  // One process: steps c.sim.
-  explicit RunBody(BuiltCase& c);
-  // A subdomain of the case per process (c.sim empty: the processes compute the body's time
-  // step together in agree_on_body()). Not collective; throws InputError when this process's
-  // subdomain cannot be built (its material, say).
-  RunBody(BuiltCase& c, ProcessGrid grid, int rank);
+  virtual ~RunBody() = default;
+  RunBody(const RunBody&) = delete;
+  RunBody& operator=(const RunBody&) = delete;
+
   // The body's numbers agreed over the processes (after every process has built its
   // subdomain): its material summary, stable step and dt. Collective: throws the same
   // InputError on every process (K_r < 1, the time step) as one process would.
-  void agree_on_body();
+  virtual void agree_on_body() = 0;
 
-  bool distributed() const { return run_ != nullptr; }
+  virtual bool distributed() const = 0;
   // The numbers of the body the resolved case reports: in a distributed run combined over the
   // processes (the same as one process's).
-  BodyNumbers numbers() const;
+  virtual BodyNumbers numbers() const = 0;
   // fields.csv at `path`: the material of every bar (up to 2 million, else a regular sample),
   // for fields.png and the user's own statistics. Collective; the first process writes.
   void write_fields(const std::string& path);
-  ProcessGrid grid() const { return run_ ? run_->subdomain().grid : ProcessGrid{}; }
+  virtual ProcessGrid grid() const = 0;
   // This process writes the outputs.
   bool writes() const { return rank_ == 0; }
   const Lattice& lattice() const { return *c_.lattice; }
   double dt() const { return dt_; }
-  const StableStep& stable_step() const { return run_ ? stable_ : c_.sim->stable_step(); }
-  std::uint64_t step_count() const;
+  virtual const StableStep& stable_step() const = 0;
+  std::uint64_t step_count() const { return sim().step_count(); }
   double time() const { return static_cast<double>(step_count()) * dt_; }
 
   // One step (and, distributed, the exchange of ghost nodes). With `report`, the probes at
   // the step's start and the energies; distributed, these and the step's events come to the
   // first process in one gather.
-  void step(bool report);
+  virtual void step(bool report) = 0;
   // The whole body's energies of the last report step (first process).
   const EnergyReport& last_report() const { return report_; }
   // The case's probes at the start of the last report step (first process).
   const std::vector<double>& last_probes() const { return probes_; }
   // The whole body's events gathered so far and not yet taken, in (step, bar) order (first
   // process; empty elsewhere). Not collective.
-  std::vector<Event> take_events();
+  virtual std::vector<Event> take_events() = 0;
   // The first node of the body with a displacement beyond `limit` or not finite, or
   // num_nodes(): the same on every process.
-  index_t first_node_beyond(double limit);
+  virtual index_t first_node_beyond(double limit) = 0;
   // Every process's `value`, the largest (signals, decisions of the first process).
-  int max_over_processes(int value) const;
+  virtual int max_over_processes(int value) const = 0;
 
   // The checkpoint file at `path` (io/checkpoint.hpp): `meta` (the first process's run
   // state), the body's progress, and the arrays each process owns written at their places, so
@@ -83,47 +86,58 @@ public:
   // The body's bars softening and broken now. Collective.
   std::array<std::uint64_t, 2> softening_and_broken();
   // The displacement of a node of the body, on the first process. Collective.
-  Vec3 displacement(index_t node);
+  virtual Vec3 displacement(index_t node) = 0;
   // VTU snapshots: prepare_snapshots() makes the writer (what does not change during the run),
   // write_snapshot() writes the current state at `path` (the same bytes whatever the number of
   // processes; distributed, every process writes its part of the file). Collective.
-  void prepare_snapshots();
-  void write_snapshot(const std::string& path);
+  virtual void prepare_snapshots() = 0;
+  virtual void write_snapshot(const std::string& path) = 0;
 
-private:
-  Simulation& sim(); // the case's, or this process's subdomain's
+protected:
+  RunBody(BuiltCase& c, int rank) : c_(c), rank_(rank) {}
+
+  // The case's Simulation, or this process's subdomain's.
+  virtual Simulation& sim() = 0;
+  virtual const Simulation& sim() const = 0;
   // This process's nodes or bars in spans of the body's order: those it owns, or its window.
-  std::vector<Span> node_spans(bool owned) const;
-  std::vector<Span> bar_spans(bool owned) const;
-  // Calls visit(place, values, count) for every piece of the checkpoint's arrays this process
-  // owns: its values at places counted in doubles from the arrays' start (io/checkpoint.hpp).
-  template <class F> void for_each_owned_piece(F&& visit);
-  // This process's part of a report: probe terms, energy rows and sums, events (each list
-  // preceded by its length), and the first process's reading of all parts.
-  void append_probe_terms(std::vector<double>& out) const;
-  void append_energy_rows(std::vector<double>& out);
-  void append_events(std::vector<double>& out);
-  void read_report(bool report);              // from received_
-  void combine_numbers(const Lattice& whole); // numbers_ of the body from the processes' own
-  std::vector<double> serial_probes() const;
+  virtual std::vector<Span> node_spans(bool owned) const = 0;
+  virtual std::vector<Span> bar_spans(bool owned) const = 0;
+  // For a checkpoint: the body's ledger (every process's exact sums added), with every event
+  // not yet written added to events_, on the first process. Collective.
+  virtual Ledger::State collect_ledger_and_events() = 0;
+  // The rows (bar, E, Gf, e_p, e_r) of every stride-th bar of the body, in any order, on the
+  // first process (empty elsewhere): each bar's material as a user reads it
+  // (BarTable::properties). Collective.
+  virtual std::vector<double> field_rows(index_t stride) = 0;
+
+  // The events kept in events_, in (step, bar) order; none are kept after.
+  std::vector<Event> take_kept_events();
+  // A probe's value that needs no simulation: the total of a load at time t.
+  double load_probe(const ProbeSpec& p, double t) const;
+  // The reaction probe's term of one node: its bar forces and load along the component (the
+  // reaction is minus their sum over the set).
+  static double reaction_term(const Simulation& sim, index_t node, int component);
+
   BuiltCase& c_;
-  int rank_ = 0, ranks_ = 1;
+  int rank_;
   double dt_ = 0.0;
-  StableStep stable_; // the body's
-  BodyNumbers numbers_;
-  std::unique_ptr<SubdomainRun> run_;
-  std::unique_ptr<LatticeVtuWriter> vtu_;             // one process
-  std::unique_ptr<SubdomainVtuWriter> subdomain_vtu_; // distributed
-  EnergyRows rows_; // this process's rows of a report, kept from call to call
-  // The order of the body's bar rows among all processes' rows of a report, in rank order
-  // (first process).
-  std::vector<std::size_t> bar_order_;
-  std::vector<double> halo_[4];
-  std::vector<double> send_, received_; // gathers' buffers, kept from call to call
   EnergyReport report_{};
   std::vector<double> probes_;
   std::vector<Event> events_; // gathered or kept by a checkpoint, not yet taken (first process)
   double initial_ = 0.0;      // the whole body's elastic + kinetic energy at t = 0
+  std::vector<double> send_;  // gathers' and checkpoint pieces' buffer, kept from call to call
+
+private:
+  // Calls visit(place, values, count) for every piece of the checkpoint's arrays this process
+  // owns: its values at places counted in doubles from the arrays' start (io/checkpoint.hpp).
+  template <class F> void for_each_owned_piece(F&& visit);
 };
+
+// One process: steps c.sim.
+std::unique_ptr<RunBody> make_serial_body(BuiltCase& c);
+// A subdomain of the case per process (c.sim empty: the processes compute the body's time
+// step together in agree_on_body()). Not collective; throws InputError when this process's
+// subdomain cannot be built (its material, say).
+std::unique_ptr<RunBody> make_distributed_body(BuiltCase& c, ProcessGrid grid, int rank);
 
 } // namespace ldem

@@ -1,0 +1,369 @@
+// Building a case: from a case file to a ready Simulation (or, for a distributed run, what
+// each process needs to build its subdomain), and the resolved case the run reports.
+#include "app/case_run.hpp"
+#include "util/error.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <sstream>
+#include <toml++/toml.h>
+#include <variant>
+
+namespace ldem {
+
+namespace {
+
+std::vector<index_t> select(const Lattice& lat, const NodeSetSpec& s) {
+  switch (s.kind) {
+  case NodeSetSpec::Kind::Face:
+    return select_face(lat, s.face);
+  case NodeSetSpec::Kind::FaceCentres:
+    return select_face_module_centres(lat, s.face);
+  case NodeSetSpec::Kind::Box:
+    return select_box(lat, s.lo, s.hi);
+  case NodeSetSpec::Kind::All:
+    break;
+  }
+  return select_all(lat);
+}
+
+std::string how(const NodeSetSpec& s) {
+  switch (s.kind) {
+  case NodeSetSpec::Kind::Face:
+    return "face " + face_name(s.face);
+  case NodeSetSpec::Kind::FaceCentres:
+    return "centres of the modules along face " + face_name(s.face);
+  case NodeSetSpec::Kind::Box:
+    return fmt::format("box [{:g}, {:g}, {:g}] to [{:g}, {:g}, {:g}]", s.lo.x, s.lo.y, s.lo.z,
+                       s.hi.x, s.hi.y, s.hi.z);
+  case NodeSetSpec::Kind::All:
+    break;
+  }
+  return "all nodes";
+}
+
+std::string dofs_text(DofMask m) {
+  std::string s;
+  for (int d = 0; d < 3; ++d)
+    if (m & (1u << d))
+      s += static_cast<char>('x' + d);
+  return s;
+}
+
+} // namespace
+
+const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name) {
+  for (const NodeSet& s : sets)
+    if (s.name == name)
+      return s;
+  throw InputError("node set \"" + name + "\" is not defined");
+}
+
+BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&)>& adjust,
+                     bool with_simulation) {
+  BuiltCase c;
+  c.spec = read_case(path);
+  if (adjust)
+    adjust(c.spec);
+  const CaseSpec& s = c.spec;
+  try {
+    Lattice lat(s.nx, s.ny, s.nz, s.L);
+    for (const NodeSetSpec& ns : s.node_sets)
+      c.sets.push_back(make_node_set(ns.name, select(lat, ns), how(ns)));
+    for (const PrecrackSpec& p : s.precracks) {
+      c.cuts.push_back(cut_bars(lat, p.rect, p.nudge));
+      c.precracked.insert(c.precracked.end(), c.cuts.back().bars.begin(), c.cuts.back().bars.end());
+    }
+    std::sort(c.precracked.begin(), c.precracked.end());
+    c.precracked.erase(std::unique(c.precracked.begin(), c.precracked.end()), c.precracked.end());
+    Conditions cond;
+    cond.plane_strain_axis = s.plane_strain_axis;
+    for (const FixedSpec& f : s.fixed)
+      cond.fixed.push_back({set_named(c.sets, f.set), f.dofs});
+    for (const VelocitySpec& v : s.velocities)
+      cond.velocities.push_back({set_named(c.sets, v.set), v.dofs, v.value, v.scale});
+    for (const LoadSpec& l : s.loads)
+      cond.loads.push_back({set_named(c.sets, l.set), l.force, l.scale});
+    for (const ProbeSpec& p : s.probes) {
+      index_t best = 0;
+      if (p.kind == ProbeSpec::Kind::BarForce) {
+        double d_best = INFINITY;
+        for (index_t b = 0; b < lat.num_bars(); ++b) {
+          const Vec3 m = lat.bar_centre(b);
+          const double d = (m.x - p.at.x) * (m.x - p.at.x) + (m.y - p.at.y) * (m.y - p.at.y) +
+                           (m.z - p.at.z) * (m.z - p.at.z);
+          if (d < d_best) {
+            d_best = d;
+            best = b;
+          }
+        }
+      }
+      c.probe_bars.push_back(best);
+    }
+    BarFields fields;
+    const std::pair<const std::optional<Field>*, std::vector<double>*> props[] = {
+        {&s.fields.E, &fields.E},
+        {&s.fields.Gf, &fields.Gf},
+        {&s.fields.e_p, &fields.e_p},
+        {&s.fields.e_r, &fields.e_r},
+        {&s.fields.R_f, &fields.R_f}};
+    const char* names[] = {"material.E", "material.Gf", "material.e_p", "material.e_r",
+                           "material.R_f"};
+    // Evaluated over the whole body only where it is built: a distributed run's other
+    // processes evaluate their windows (run_body_distributed.cpp).
+    for (int i = 0; i < 5; ++i)
+      if (const auto& f = *props[i].first) {
+        validate_field(*f, lat, names[i]);
+        if (with_simulation)
+          *props[i].second = evaluate_field(*f, lat);
+      }
+    if (s.fields.rho) {
+      validate_field(*s.fields.rho, lat, "material.rho");
+      if (with_simulation)
+        fields.rho = evaluate_field_modules(*s.fields.rho, lat);
+    }
+    c.lattice = lat;
+    c.conditions = cond;
+    c.options.step = s.step;
+    c.options.damping = s.damping;
+    if (with_simulation) {
+      BarTable table(lat, s.material, fields);
+      c.warnings = table.warnings();
+      c.sim = std::make_unique<Simulation>(std::move(lat), std::move(table), std::move(cond),
+                                           c.options, c.precracked);
+    }
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", path, e.what()));
+  }
+  c.path = path;
+  if (c.sim)
+    check_end_time(c, c.sim->dt());
+  return c;
+}
+
+void check_end_time(const BuiltCase& c, double dt) {
+  if (!(c.spec.end_time >= dt))
+    throw InputError(fmt::format("{}: time.end: expected at least one time step ({:.4g} s), got "
+                                 "{:g} s",
+                                 c.path, dt, c.spec.end_time));
+}
+
+BodyNumbers body_numbers(const Simulation& sim) {
+  return {sim.table().ranges(),   sim.table().ductility_summary(),
+          sim.stable_step(),      sim.dt(),
+          sim.bytes_per_module(), sim.table().per_bar()};
+}
+
+std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
+  const CaseSpec& s = c.spec;
+  const Lattice& lat = *c.lattice;
+  auto vec = [](Vec3 v) { return toml::array{v.x, v.y, v.z}; };
+  toml::table root;
+  root.insert("case", toml::table{{"title", s.title}});
+  root.insert("lattice",
+              toml::table{{"modules", toml::array{s.nx, s.ny, s.nz}},
+                          {"L", s.L},
+                          {"plane_strain",
+                           s.plane_strain_axis < 0
+                               ? std::string("none")
+                               : std::string(1, static_cast<char>('x' + s.plane_strain_axis))}});
+  toml::table mat{{"law", "bilinear"},
+                  {"E", s.material.E},
+                  {"nu", s.material.nu},
+                  {"rho", s.material.rho},
+                  {"Gf", s.material.Gf},
+                  {"single_ratio", s.material.single_ratio},
+                  {"allow_low_kr", s.material.allow_low_kr}};
+  if (s.material.e_p)
+    mat.insert("e_p", *s.material.e_p);
+  if (s.material.R_f)
+    mat.insert("R_f", *s.material.R_f);
+  if (s.material.e_r)
+    mat.insert("e_r", *s.material.e_r);
+  const std::pair<const char*, const std::optional<Field>*> field_of[] = {
+      {"E", &s.fields.E},     {"Gf", &s.fields.Gf},   {"e_p", &s.fields.e_p},
+      {"e_r", &s.fields.e_r}, {"R_f", &s.fields.R_f}, {"rho", &s.fields.rho}};
+  toml::table fields_table;
+  for (const auto& [name, f] : field_of)
+    if (*f) {
+      mat.insert_or_assign(name, describe_field(**f)); // the field, described in words
+      if ((*f)->kind == Field::Kind::Weibull) {
+        const double g = weibull_shape((*f)->cv);
+        fields_table.insert(name, toml::table{{"kind", "weibull"},
+                                              {"mean", (*f)->mean},
+                                              {"cv", (*f)->cv},
+                                              {"shape", g},
+                                              {"scale", weibull_scale((*f)->mean, g)},
+                                              {"correlation_length", (*f)->correlation_length}});
+      } else {
+        fields_table.insert(
+            name, toml::table{{"kind", (*f)->kind == Field::Kind::Linear ? "linear" : "table"}});
+      }
+    }
+  if (!fields_table.empty())
+    root.insert("fields", fields_table);
+  const MaterialRanges& mr = body.ranges;
+  mat.insert("rule", mr.rule);
+  mat.insert("E_range", toml::array{mr.E[0], mr.E[1]});
+  mat.insert("Gf_range", toml::array{mr.Gf[0], mr.Gf[1]});
+  mat.insert("e_p_range", toml::array{mr.e_p[0], mr.e_p[1]});
+  mat.insert("e_r_normal_range", toml::array{mr.e_r_normal[0], mr.e_r_normal[1]});
+  root.insert("material", mat);
+  toml::array sets;
+  for (std::size_t i = 0; i < s.node_sets.size(); ++i) {
+    const NodeSetSpec& n = s.node_sets[i];
+    toml::table t{{"name", n.name}};
+    if (n.kind == NodeSetSpec::Kind::Face)
+      t.insert("face", face_name(n.face));
+    else if (n.kind == NodeSetSpec::Kind::FaceCentres)
+      t.insert("face_centres", face_name(n.face));
+    else if (n.kind == NodeSetSpec::Kind::Box) {
+      t.insert("box_min", vec(n.lo));
+      t.insert("box_max", vec(n.hi));
+    } else
+      t.insert("all", true);
+    t.insert("nodes_selected", static_cast<std::int64_t>(c.sets[i].nodes.size()));
+    sets.push_back(t);
+  }
+  if (!sets.empty())
+    root.insert("node_set", sets);
+  auto function = [](const TimeFunction& f) {
+    toml::array terms;
+    for (const TimeTerm& term : f.terms())
+      std::visit(
+          [&terms](const auto& t) {
+            using T = std::decay_t<decltype(t)>;
+            if constexpr (std::is_same_v<T, Constant>)
+              terms.push_back(toml::table{{"type", "constant"}, {"value", t.value}});
+            else if constexpr (std::is_same_v<T, LinearRamp>)
+              terms.push_back(
+                  toml::table{{"type", "ramp"}, {"value", t.value}, {"duration", t.duration}});
+            else if constexpr (std::is_same_v<T, ExponentialRise>)
+              terms.push_back(
+                  toml::table{{"type", "exp_rise"}, {"value", t.value}, {"tau", t.tau}});
+            else
+              terms.push_back(toml::table{{"type", "growing_sine"},
+                                          {"amplitude", t.amplitude},
+                                          {"frequency", t.frequency},
+                                          {"t_start", t.t_start},
+                                          {"tau", t.tau},
+                                          {"n_cycles", t.n_cycles}});
+          },
+          term);
+    // Inline tables ({ type = ... }), as a case writes them.
+    for (auto& t : terms)
+      t.as_table()->is_inline(true);
+    return terms;
+  };
+  toml::array fixed, vel, loads, cracks, probes;
+  for (const FixedSpec& f : s.fixed)
+    fixed.push_back(toml::table{{"set", f.set}, {"dofs", dofs_text(f.dofs)}});
+  for (const VelocitySpec& v : s.velocities)
+    vel.push_back(toml::table{{"set", v.set},
+                              {"dofs", dofs_text(v.dofs)},
+                              {"value", vec(v.value)},
+                              {"function", function(v.scale)}});
+  for (const LoadSpec& l : s.loads)
+    loads.push_back(toml::table{{"name", l.name},
+                                {"set", l.set},
+                                {"force", vec(l.force)},
+                                {"function", function(l.scale)}});
+  for (std::size_t i = 0; i < s.precracks.size(); ++i) {
+    const PrecrackSpec& p = s.precracks[i];
+    cracks.push_back(toml::table{{"name", p.rect.name},
+                                 {"origin", vec(c.cuts[i].origin)},
+                                 {"edge1", vec(p.rect.edge1)},
+                                 {"edge2", vec(p.rect.edge2)},
+                                 {"nudge", p.nudge},
+                                 {"nudged", c.cuts[i].nudged},
+                                 {"bars_cut", static_cast<std::int64_t>(c.cuts[i].bars.size())}});
+  }
+  for (std::size_t i = 0; i < s.probes.size(); ++i) {
+    const ProbeSpec& p = s.probes[i];
+    toml::table t{{"name", p.name}};
+    if (p.kind == ProbeSpec::Kind::BarForce) {
+      t.insert("kind", "bar_force");
+      t.insert("at", vec(p.at));
+      t.insert("bar", static_cast<std::int64_t>(c.probe_bars[i]));
+    } else if (p.kind == ProbeSpec::Kind::Reaction) {
+      t.insert("kind", "reaction");
+      t.insert("set", p.set);
+      t.insert("component", std::string(1, static_cast<char>('x' + p.component)));
+    } else {
+      t.insert("kind", "load");
+      t.insert("load", p.load);
+    }
+    probes.push_back(t);
+  }
+  if (!fixed.empty())
+    root.insert("fixed", fixed);
+  if (!vel.empty())
+    root.insert("velocity", vel);
+  if (!loads.empty())
+    root.insert("load", loads);
+  if (!cracks.empty())
+    root.insert("precrack", cracks);
+  const char* rule = s.step.rule == TimeStep::Rule::Given   ? "dt"
+                     : s.step.rule == TimeStep::Rule::Paper ? "paper"
+                                                            : "safety";
+  root.insert("time", toml::table{{"end", s.end_time},
+                                  {"rule", rule},
+                                  {"safety", s.step.safety},
+                                  {"courant", s.step.courant},
+                                  {"dt", body.dt},
+                                  {"damping", s.damping}});
+  if (s.stop_displacement > 0)
+    root["time"].as_table()->insert("stop_displacement", s.stop_displacement);
+  root.insert("output",
+              toml::table{{"energy_every", static_cast<std::int64_t>(s.output.energy_every)},
+                          {"vtu_every", static_cast<std::int64_t>(s.output.vtu_every)},
+                          {"vtu", s.output.vtu},
+                          {"plots", s.output.plots}});
+  if (!probes.empty())
+    root.insert("probe", probes);
+  {
+    toml::table an{{"crack", s.analysis.crack}};
+    if (s.analysis.min_branch_length > 0)
+      an.insert("min_branch_length", s.analysis.min_branch_length);
+    if (s.analysis.branch_fit_length > 0)
+      an.insert("branch_fit_length", s.analysis.branch_fit_length);
+    if (s.analysis.speed_window > 0)
+      an.insert("speed_window", s.analysis.speed_window);
+    an.insert("fatigue", s.analysis.fatigue);
+    if (!s.analysis.fatigue_load.empty())
+      an.insert("fatigue_load", s.analysis.fatigue_load);
+    an.insert("fatigue_points", s.analysis.fatigue_points);
+    an.insert("fatigue_window", s.analysis.fatigue_window);
+    if (s.analysis.fatigue_band > 0)
+      an.insert("fatigue_band", s.analysis.fatigue_band);
+    if (s.analysis.fatigue_unstable_advance > 0)
+      an.insert("fatigue_unstable_advance", s.analysis.fatigue_unstable_advance);
+    if (s.analysis.fatigue_width > 0)
+      an.insert("fatigue_width", s.analysis.fatigue_width);
+    root.insert("analysis", an);
+  }
+  const DuctilitySummary& k = body.ductility;
+  // c of the stiffest bars, as the paper's step rule takes it.
+  const double c_bar = std::sqrt(body.ranges.E[1] / s.material.rho);
+  root.insert("resolved",
+              toml::table{{"nodes", static_cast<std::int64_t>(lat.num_nodes())},
+                          {"bars", static_cast<std::int64_t>(lat.num_bars())},
+                          {"steps", static_cast<std::int64_t>(std::ceil(s.end_time / body.dt))},
+                          {"dt", body.dt},
+                          {"dt_over_L_c", body.dt * c_bar / s.L},
+                          {"dt_stable", body.stable.dt},
+                          {"dt_stable_over_L_c", body.stable.dt * c_bar / s.L},
+                          {"dt_proven_bound", body.stable.dt_bound},
+                          {"K_r_normal_min", k.kr_min_normal},
+                          {"K_r_normal_max", k.kr_max_normal},
+                          {"K_r_diagonal_min", k.kr_min_diag},
+                          {"K_r_diagonal_max", k.kr_max_diag},
+                          {"L_cr", k.L_cr_min},
+                          {"precracked_bars", static_cast<std::int64_t>(c.precracked.size())}});
+  std::ostringstream os;
+  os << "# The case as run: every default and derived value ([resolved]).\n" << root << "\n";
+  return os.str();
+}
+
+} // namespace ldem

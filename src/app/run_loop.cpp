@@ -1,0 +1,355 @@
+// The time-step loop of `ldem run` and `ldem resume`: the outputs, checkpoints, stop signals
+// and the end of a run.
+#include "app/run_loop.hpp"
+
+#include "analysis/crack.hpp"
+#include "analysis/fatigue.hpp"
+#include "app/run_body.hpp"
+#include "io/checkpoint.hpp"
+#include "io/output.hpp"
+#include "parallel/comm.hpp"
+#include "util/error.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <filesystem>
+#include <fmt/format.h>
+#include <omp.h>
+#include <unistd.h>
+
+namespace ldem {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// The signal that asked the run to stop (SIGINT or SIGTERM), 0 while none has.
+std::atomic<int> g_interrupted{0};
+void on_signal(int sig) {
+  g_interrupted = sig;
+}
+
+class Progress {
+public:
+  Progress(std::uint64_t total) : total_(total), tty_(isatty(fileno(stderr))) {
+    start_ = last_ = std::chrono::steady_clock::now();
+  }
+  void update(std::uint64_t step, double t, std::uint64_t broken, double balance, bool last) {
+    const auto now = std::chrono::steady_clock::now();
+    const double since = std::chrono::duration<double>(now - last_).count();
+    const double frac =
+        static_cast<double>(step) / static_cast<double>(std::max<std::uint64_t>(total_, 1));
+    if (!last && since < (tty_ ? 0.2 : 10.0))
+      return;
+    last_ = now;
+    const double el = std::chrono::duration<double>(now - start_).count();
+    const double eta = frac > 0 ? el * (1 - frac) / frac : 0;
+    const int w = 30, fill = static_cast<int>(frac * w);
+    const std::string line = fmt::format(
+        "step {}/{}  t = {:.4g} s  broken {}  balance {:.1e}  elapsed {:.0f} s  ETA {:.0f} s", step,
+        total_, t, broken, balance, el, eta);
+    if (tty_)
+      fmt::print(stderr, "\r[{}{}] {:3.0f}%  {}\x1b[K{}", std::string(fill, '#'),
+                 std::string(w - fill, '.'), 100 * frac, line, last ? "\n" : "");
+    else
+      fmt::print(stderr, "ldem: {:3.0f}%  {}\n", 100 * frac, line);
+  }
+
+private:
+  std::uint64_t total_;
+  bool tty_;
+  std::chrono::steady_clock::time_point start_, last_;
+};
+
+} // namespace
+
+std::string run_state_bytes(const RunState& st) {
+  using checkpoint::put;
+  std::string meta;
+  checkpoint::put_str(meta, st.case_path);
+  put(meta, st.case_hash);
+  put(meta, st.next);
+  put(meta, static_cast<std::uint64_t>(st.snapshots.size()));
+  for (const auto& [t, name] : st.snapshots) {
+    put(meta, t);
+    checkpoint::put_str(meta, name);
+  }
+  put(meta, st.n_soft);
+  put(meta, st.n_broken);
+  put(meta, st.max_balance);
+  for (std::uint64_t l : st.lengths)
+    put(meta, l);
+  return meta;
+}
+
+RunState parse_run_state(const std::string& meta) {
+  using checkpoint::get;
+  std::size_t pos = 0;
+  RunState st;
+  st.case_path = checkpoint::get_str(meta, pos);
+  get(meta, pos, st.case_hash);
+  get(meta, pos, st.next);
+  std::uint64_t ns = 0;
+  get(meta, pos, ns);
+  for (std::uint64_t i = 0; i < ns; ++i) {
+    double t = 0;
+    get(meta, pos, t);
+    st.snapshots.emplace_back(t, checkpoint::get_str(meta, pos));
+  }
+  get(meta, pos, st.n_soft);
+  get(meta, pos, st.n_broken);
+  get(meta, pos, st.max_balance);
+  for (std::uint64_t& l : st.lengths)
+    get(meta, pos, l);
+  return st;
+}
+
+int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState st, bool fresh,
+             bool plots, std::uint64_t checkpoint_every, double checkpoint_seconds) {
+  const CaseSpec& s = c.spec;
+  const Lattice& lat = body.lattice();
+  const bool writes = body.writes();
+  const std::string dir = out_dir + "/";
+  auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / body.dt() - 1e-9));
+  const std::uint64_t every =
+      s.output.energy_every ? s.output.energy_every : std::max<std::uint64_t>(1, steps / 500);
+  const std::uint64_t vtu_every =
+      s.output.vtu_every ? s.output.vtu_every : std::max<std::uint64_t>(1, steps / 20);
+
+  auto open = [&](const char* name, int i) -> std::unique_ptr<OutputFile> {
+    if (!writes)
+      return nullptr;
+    return fresh ? std::make_unique<OutputFile>(dir + name)
+                 : std::make_unique<OutputFile>(dir + name, st.lengths[i]);
+  };
+  const auto energy = open("energy.csv", 0), events = open("events.csv", 1),
+             probes = open("probes.csv", 2);
+  if (fresh && writes) {
+    energy->write("time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,"
+                  "balance_error\n");
+    events->write("bar,event,time,x,y,z\n");
+    std::string head = "time";
+    for (const ProbeSpec& p : s.probes)
+      head += "," + p.name;
+    probes->write(head + "\n");
+  }
+  auto flush_events = [&] { // first process
+    std::string rows;
+    for (const Event& e : body.take_events()) {
+      const Vec3 m = lat.bar_centre(e.bar);
+      (e.state == BarState::Softening ? st.n_soft : st.n_broken)++;
+      rows += fmt::format("{},{},{:.9g},{:.9g},{:.9g},{:.9g}\n", e.bar,
+                          e.state == BarState::Softening ? "softening" : "broken",
+                          static_cast<double>(e.step) * body.dt(), m.x, m.y, m.z);
+    }
+    events->write(rows);
+  };
+  // The probes at the start of the last report step.
+  auto probe_row = [&]() {
+    std::string row = fmt::format("{:.9g}", body.last_report().time);
+    for (double v : body.last_probes())
+      row += fmt::format(",{:.9g}", v);
+    probes->write(row + "\n");
+  };
+  // The rows written so far and the list of snapshots reach the files at most once a second
+  // (flush_live), at every checkpoint and at the end: a crash loses nothing that `ldem resume`
+  // does not write again from the last checkpoint, and a run's files can be watched as it goes.
+  // (A flush per report, and lattice.pvd renamed over itself after each snapshot, which makes
+  // the file system write it out at once, cost a tenth of a short run.)
+  bool pvd_pending = false;
+  auto last_flush = std::chrono::steady_clock::now();
+  auto flush_live = [&]() {
+    energy->flush();
+    events->flush();
+    probes->flush();
+    if (pvd_pending)
+      write_file(dir + "lattice.pvd", lattice_pvd(st.snapshots));
+    pvd_pending = false;
+    last_flush = std::chrono::steady_clock::now();
+  };
+  auto save_checkpoint = [&](std::uint64_t next) {
+    std::string meta;
+    if (writes) {
+      flush_live();
+      st.next = next;
+      st.lengths[0] = energy->size();
+      st.lengths[1] = events->size();
+      st.lengths[2] = probes->size();
+      meta = run_state_bytes(st);
+      fs::create_directories(dir + "checkpoint");
+    }
+    if (body.distributed())
+      barrier(); // the folder exists before the processes open the file
+    body.write_checkpoint(dir + "checkpoint/state.ckpt", meta);
+  };
+
+  // The snapshot writer prepares what does not change during the run (connectivity, fields)
+  // here, with the rest of the set-up, so that the loop's timing holds only per-step work.
+  if (s.output.vtu)
+    body.prepare_snapshots();
+  std::unique_ptr<Progress> progress;
+  if (writes)
+    progress = std::make_unique<Progress>(steps);
+  const auto t0 = std::chrono::steady_clock::now();
+  auto last_checkpoint = t0;
+  const std::uint64_t first = st.next;
+  std::uint64_t n = st.next;
+  std::string blow_up, stopped_by;
+  bool blew_up = false;
+  int signal = 0;
+  // One process looks at signals and the clock every step; processes of a distributed run
+  // agree on them every 10 steps (one reduction each), so that all stop at the same step.
+  const std::uint64_t agree_every = body.distributed() ? 10 : 1;
+  for (; n <= steps; ++n) {
+    // An interruption stops between steps: the checkpoint holds the state before step n and
+    // the outputs hold every row of the steps before it, so a resumed run writes exactly
+    // what the uninterrupted one would have.
+    const bool look = n % agree_every == 0;
+    if (look && (signal = body.max_over_processes(g_interrupted)) != 0)
+      break;
+    bool save = n > first && checkpoint_every && n % checkpoint_every == 0;
+    if (look && n > first && checkpoint_seconds > 0) // the first process's clock decides
+      save |=
+          body.max_over_processes(writes && std::chrono::duration<double>(
+                                                std::chrono::steady_clock::now() - last_checkpoint)
+                                                    .count() > checkpoint_seconds) != 0;
+    if (save) {
+      save_checkpoint(n);
+      last_checkpoint = std::chrono::steady_clock::now();
+    }
+    // Every 10 steps, a look for a numerical blow-up (a NaN, or displacements beyond any
+    // physical scale): the run stops with the first bad node, keeping its outputs up to here
+    // and its last checkpoint.
+    if (n % 10 == 0) {
+      const double limit =
+          1e3 * lat.L() * static_cast<double>(std::max({lat.nx(), lat.ny(), lat.nz()}));
+      const index_t bad = body.first_node_beyond(limit);
+      if (bad < lat.num_nodes()) {
+        blew_up = true;
+        const Vec3 u = body.displacement(bad);
+        if (writes) {
+          const Vec3 x = lat.position(bad);
+          blow_up = fmt::format("numerical blow-up detected at step {} (t = {:.6g} s): node {} "
+                                "at ({:g}, {:g}, {:g}) m has displacement ({:g}, {:g}, {:g}) m. "
+                                "Check the case's loads, velocities and material values; the "
+                                "outputs are complete up to the last report before this step",
+                                n, body.time(), bad, x.x, x.y, x.z, u.x, u.y, u.z);
+        }
+        break;
+      }
+      if (s.stop_displacement > 0) {
+        const index_t far = body.first_node_beyond(s.stop_displacement);
+        if (far < lat.num_nodes()) {
+          const Vec3 x = lat.position(far);
+          stopped_by = fmt::format("node {} at ({:g}, {:g}, {:g}) m moved beyond "
+                                   "time.stop_displacement = {:g} m at t = {:.6g} s",
+                                   far, x.x, x.y, x.z, s.stop_displacement, body.time());
+          steps = n; // this step is the last: it is reported and written as the run's end
+        }
+      }
+    }
+    const bool report = n % every == 0 || n == steps;
+    if (s.output.vtu && (n % vtu_every == 0 || n == steps)) {
+      // (The first process keeps the list of snapshots: it names the file.)
+      std::string name = fmt::format("lattice_{:06d}.vtu", st.snapshots.size());
+      if (body.distributed())
+        broadcast_from_first(name);
+      body.write_snapshot(dir + name);
+      if (writes) {
+        st.snapshots.emplace_back(body.time(), name);
+        pvd_pending = true;
+      }
+    }
+    body.step(report);
+    if (report && writes) {
+      probe_row();
+      flush_events();
+      const EnergyReport& r = body.last_report();
+      energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g}\n", r.time,
+                                r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
+                                r.damping_dissipated, r.balance_error));
+      if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
+          n > 0)
+        st.max_balance = std::max(st.max_balance, r.balance_error);
+      if (std::chrono::steady_clock::now() - last_flush > std::chrono::seconds(1))
+        flush_live();
+      progress->update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error, n == steps);
+    }
+  }
+  if (signal)
+    save_checkpoint(n);
+  if (writes)
+    flush_live(); // the last rows and snapshots, within the loop's time
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto [softened, broken] = body.softening_and_broken(); // the final state
+  if (!writes) // the first process reports; the others end with its exit code
+    return blew_up ? 3 : signal == SIGTERM ? 143 : signal ? 130 : 0;
+  energy->commit();
+  events->commit();
+  probes->commit();
+  const std::uint64_t done = n - first;
+  const ProcessGrid grid = body.grid();
+  write_file(
+      dir + "summary.json",
+      fmt::format("{{\n  \"case\": \"{}\",\n  \"title\": \"{}\",\n  \"nodes\": {},\n"
+                  "  \"bars\": {},\n  \"steps\": {},\n  \"dt\": {:.9g},\n"
+                  "  \"dt_stable\": {:.9g},\n  \"end_time\": {:.9g},\n  \"wall_s\": {:.4f},\n"
+                  "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n  \"processes\": {},\n"
+                  "  \"process_grid\": [1, {}, {}],\n  \"bytes_per_module\": {:.1f},\n"
+                  "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
+                  "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
+                  "  \"interrupted\": {},\n  \"stopped_by\": {},\n  \"analysis\": {{}}\n}}\n",
+                  st.case_path, s.title, lat.num_nodes(), lat.num_bars(), n, body.dt(),
+                  body.stable_step().dt, body.time(), wall,
+                  static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
+                  omp_get_max_threads(), process_count(), grid.py, grid.pz,
+                  body.numbers().bytes_per_module, st.max_balance, softened, broken,
+                  c.precracked.size(), signal ? "true" : "false",
+                  stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\""));
+  if (!blow_up.empty()) {
+    fmt::print(stderr, "ldem: error: {}\n", blow_up);
+    return 3;
+  }
+  if (signal) {
+    fmt::print(stderr,
+               "ldem: stopped by {} at t = {:.4g} s (step {}); outputs complete up to then and "
+               "a checkpoint in {}/checkpoint. Continue with: ldem resume {}{}\n",
+               signal == SIGTERM ? "SIGTERM" : "SIGINT", body.time(), n, out_dir, out_dir,
+               body.distributed() ? " (or under mpirun, with any number of processes)" : "");
+    return signal == SIGTERM ? 143 : 130;
+  }
+  if (!stopped_by.empty())
+    fmt::print(stderr, "ldem: the run ended before time.end: {}\n", stopped_by);
+  if (s.analysis.crack)
+    analyze_crack_dir(out_dir);
+  if (s.analysis.fatigue)
+    fmt::print(stderr, "ldem: fatigue: {}\n", fatigue_report(analyze_fatigue_dir(out_dir)));
+  if (plots && s.output.plots)
+    plot_command(out_dir);
+  fmt::print(stderr, "ldem: done: {} steps in {:.1f} s, results in {}\n", done, wall, out_dir);
+  return 0;
+}
+
+void catch_stop_signals() {
+  g_interrupted = 0;
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+}
+
+int guarded_loop(const std::function<int()>& loop) {
+  if (process_count() == 1)
+    return loop();
+  try {
+    return loop();
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "ldem: error: {} (process {} of {}; ending all of them)\n", e.what(),
+               process_rank(), process_count());
+    abort_processes(dynamic_cast<const InputError*>(&e) ? 2 : 1);
+    throw;
+  }
+}
+
+} // namespace ldem

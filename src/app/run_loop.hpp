@@ -1,0 +1,47 @@
+// The time-step loop of `ldem run` and `ldem resume` (commands.cpp): where a run stands
+// between steps, its stop signals, and the loop that writes its outputs and checkpoints.
+#pragma once
+
+#include "app/case_run.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace ldem {
+
+class RunBody;
+
+// Where a run stands between steps: what the outputs need to continue.
+struct RunState {
+  std::string case_path; // absolute
+  std::uint64_t case_hash = 0;
+  std::uint64_t next = 0; // the next step to take
+  std::vector<std::pair<double, std::string>> snapshots;
+  std::uint64_t n_soft = 0, n_broken = 0;
+  double max_balance = 0.0;
+  std::uint64_t lengths[3] = {0, 0, 0}; // bytes of energy.csv, events.csv, probes.csv
+};
+
+// The run's state as a checkpoint's meta (io/checkpoint.hpp), and back.
+std::string run_state_bytes(const RunState& st);
+RunState parse_run_state(const std::string& meta);
+
+// From here on a Ctrl-C or SIGTERM only asks the run to stop at the next step boundary (with
+// a checkpoint); before the first step that is step 0.
+void catch_stop_signals();
+
+// The time-step loop of a run, from step st.next, writing into `out_dir` (the first process
+// writes; in a distributed run every process steps its subdomain and takes part in each
+// exchange). `fresh`: the output files start with their headers; otherwise they continue
+// where the checkpoint left them. Returns the run's exit code.
+int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState st, bool fresh,
+             bool plots, std::uint64_t checkpoint_every, double checkpoint_seconds);
+
+// run_loop, and in a distributed run an error on one process (an output that cannot be
+// written, say) ends all of them: the others would wait for it at the next exchange.
+int guarded_loop(const std::function<int()>& loop);
+
+} // namespace ldem
