@@ -5,6 +5,7 @@
 #include "solver/simulation.hpp"
 
 #include <cmath>
+#include <vector>
 
 namespace ldem::testing {
 
@@ -28,6 +29,27 @@ inline Simulation make_sim(index_t nx, index_t ny, index_t nz, double L, const M
   Lattice lat(nx, ny, nz, L);
   BarTable table(lat, m, fields);
   return Simulation(std::move(lat), std::move(table), std::move(c), o, std::move(precracked));
+}
+
+// Minus the gradient of the stored energy at every node, by central differences with step h
+// (each node's displacement moved by +-h along each axis and put back).
+inline std::vector<Vec3> minus_energy_gradient(Simulation& sim, double h) {
+  std::vector<Vec3> g(sim.lattice().num_nodes());
+  for (index_t n = 0; n < sim.lattice().num_nodes(); ++n) {
+    const Vec3 x = sim.displacement(n);
+    for (int d = 0; d < 3; ++d) {
+      Vec3 p = x, q = x;
+      (d == 0 ? p.x : d == 1 ? p.y : p.z) += h;
+      (d == 0 ? q.x : d == 1 ? q.y : q.z) -= h;
+      sim.set_displacement(n, p);
+      const double up = sim.stored_energy();
+      sim.set_displacement(n, q);
+      const double uq = sim.stored_energy();
+      sim.set_displacement(n, x);
+      (d == 0 ? g[n].x : d == 1 ? g[n].y : g[n].z) = -(up - uq) / (2 * h);
+    }
+  }
+  return g;
 }
 
 inline NodeSet face(const Lattice& lat, Face f) {

@@ -3,7 +3,6 @@
 // reference ones, snapshots, internal forces, and the force of one bar or on one node (probes).
 #pragma once
 
-#include "material/bar_law_bilinear.hpp"
 #include "solver/core.hpp"
 #include "util/error.hpp"
 #include "util/parallel.hpp"
@@ -243,15 +242,7 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
         const auto values = [f, d, l0](index_t i, Stretch g, const Law& law, typename Law::State s,
                                        double k, double EA) {
           d[i] = law.damage(EA, l0, s);
-          if constexpr (std::is_same_v<Law, BilinearLaw>) {
-            const double e = g.dl / l0;
-            const double m = std::max(s.h, e);
-            const double num = e > 0.0 ? std::max(law.e_p * (law.e_r - m), 0.0) : 1.0;
-            const double den = e > 0.0 ? (law.e_r - law.e_p) * m : 1.0;
-            f[i] = EA * e * num / den;
-          } else {
-            f[i] = law.force_over_length(k, g, s) * g.l;
-          }
+          f[i] = law.force_over_length(k, g, s) * g.l;
         };
         const index_t n = per_bar ? visit_law_row<Law, true>(core, r, values)
                                   : visit_law_row<Law, false>(core, r, values);

@@ -304,10 +304,9 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
       const Law law =
           per_bar ? Law::template at<true>(constants, i) : Law::template at<false>(constants, i);
       typename Law::State s = Law::read(states.data(), i);
-      const double eold = (g.l - fi.l0) / fi.l0;
-      if (!law.changes(eold, s))
+      if (!law.changes(g.e, s))
         continue;
-      law.update(eold, s, [&](BarState to) { events.push_back({b0 + i, to, step}); });
+      law.update(g.e, s, [&](BarState to) { events.push_back({b0 + i, to, step}); });
       Law::write(states.data(), i, s);
       if (!law.pristine(s))
         core.row_damaged[r] = 1;
