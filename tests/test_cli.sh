@@ -112,6 +112,8 @@ printf '\xff' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=5000 conv=notrunc
 expect_resume_error "checksum mismatch" "a corrupt checkpoint"
 printf '\x07' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
 expect_resume_error "format version 7" "another format version"
+printf '\x03' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
+expect_resume_error "format version 3, written by an older ldem" "an older format version"
 echo "# changed" >>"$T/case.toml"
 expect_resume_error "the case file changed since the checkpoint" "a changed case"
 "$LDEM" resume "$T/nowhere" >/dev/null 2>"$T/stderr"

@@ -2,9 +2,16 @@
 // library, runs through the same kernels as the paper's bilinear law (the intact kernel, the
 // general kernel, the slow path, the report energies, the snapshots), and its forces are
 // minus the gradient of its energy.
+#include "app/run_body.hpp"
 #include "helpers.hpp"
+#include "io/checkpoint.hpp"
+#include "io/output.hpp"
 #include "solver/law_kernels.hpp"
+#include "solver/laws.hpp"
 
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <gtest/gtest.h>
 #include <limits>
 #include <random>
@@ -189,6 +196,99 @@ TEST(LawSeam, ElasticLawConservesEnergyThroughTheKernels) {
   for (index_t b = 0; b < lat.num_bars(); ++b)
     recorded += sim.bar_state_value(0, b) > 2e-7;
   EXPECT_GT(recorded, static_cast<int>(lat.num_bars()) / 4);
+}
+
+// A case for the run layer of the 3 x 2 x 4 body of the test above, of law `law`, shaken at
+// strains of about 1e-3, past e_w = 2e-4 in many bars.
+BuiltCase recording_case(const LawKernels& law) {
+  BuiltCase c;
+  c.path = "recording.toml";
+  SolverOptions o;
+  o.law = &law;
+  c.lattice.emplace(3, 2, 4, 1.0);
+  c.sim = std::make_unique<Simulation>(make_sim(3, 2, 4, 1.0, unit_material(2e-4, 4.0), {}, o));
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1e-3, 1e-3);
+  for (index_t n = 0; n < c.lattice->num_nodes(); ++n)
+    c.sim->set_half_step_velocity(n, {u(rng), u(rng), u(rng)});
+  return c;
+}
+
+// Every state array of a simulation, value by value.
+std::vector<std::vector<double>> all_state(const Simulation& sim) {
+  std::vector<std::vector<double>> out;
+  const std::vector<Simulation::NamedArray> arrays = sim.state_arrays();
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    out.emplace_back();
+    sim.append_state(a, 0, arrays[a].per_bar ? sim.lattice().num_bars() : sim.lattice().num_nodes(),
+                     out.back());
+  }
+  return out;
+}
+
+// A law's state, declared once in its kStateArrays, is saved by name without any code of the
+// checkpoint or the snapshots knowing the law: a checkpoint lists the recording law's
+// "peak_strain" among its arrays and a run resumed from it continues bit for bit as the run
+// that went on; a VTU snapshot carries "peak_strain" per bar, each value the state's in single
+// precision. A body of another law refuses the checkpoint, naming both laws.
+TEST(LawSeam, StateIsCheckpointedAndSnapshottedByName) {
+  const std::string dir = ::testing::TempDir() + "ldem_law_seam";
+  std::filesystem::create_directories(dir);
+  const std::string ckpt = dir + "/state.ckpt", vtu = dir + "/snapshot.vtu";
+  const LawKernels& law = law_kernels<RecordingElasticLaw>();
+  BuiltCase a = recording_case(law);
+  std::unique_ptr<RunBody> body = make_serial_body(a);
+  for (int s = 0; s < 40; ++s)
+    body->step(s % 10 == 0);
+  body->write_checkpoint(ckpt, "meta");
+  body->write_snapshot(vtu);
+  const checkpoint::Header h = checkpoint::read_header(ckpt);
+  const checkpoint::Progress p = checkpoint::read_progress(h, ckpt);
+  EXPECT_EQ(p.law, "recording_elastic");
+  ASSERT_EQ(p.arrays.size(), 7u);
+  EXPECT_EQ(p.arrays[6].name, "peak_strain");
+  EXPECT_TRUE(p.arrays[6].per_bar);
+  const std::vector<double> peak = all_state(*a.sim)[6];
+  int recorded = 0;
+  for (double x : peak)
+    recorded += x > 2e-4;
+  ASSERT_GT(recorded, 20);
+
+  // The snapshot's "peak_strain" array: its values follow its byte count in the appended data.
+  const VtuLayout layout = vtu_layout(a.lattice->num_nodes(), a.lattice->num_bars(), *a.sim);
+  ASSERT_EQ(layout.states.size(), 1u);
+  std::ifstream in(vtu, std::ios::binary);
+  const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(file.find("Name=\"peak_strain\""), std::string::npos);
+  ASSERT_EQ(file.size(), layout.size);
+  for (index_t b = 0; b < a.lattice->num_bars(); ++b) {
+    float v = 0.0f;
+    std::memcpy(&v, file.data() + layout.state_value_at(0, b), sizeof v);
+    ASSERT_EQ(v, static_cast<float>(peak[b])) << "bar " << b;
+  }
+
+  // Resumed against continued: the same bits.
+  for (int s = 40; s < 80; ++s)
+    body->step(s % 10 == 0);
+  BuiltCase b = recording_case(law);
+  std::unique_ptr<RunBody> resumed = make_serial_body(b);
+  EXPECT_EQ(resumed->read_checkpoint(ckpt), "meta");
+  EXPECT_EQ(b.sim->step_count(), 40u);
+  for (int s = 40; s < 80; ++s)
+    resumed->step(s % 10 == 0);
+  EXPECT_EQ(all_state(*a.sim), all_state(*b.sim));
+
+  // The bilinear law's body has the same counts and dt, but not the same law.
+  BuiltCase c = recording_case(default_law());
+  std::unique_ptr<RunBody> other = make_serial_body(c);
+  try {
+    other->read_checkpoint(ckpt);
+    ADD_FAILURE() << "a checkpoint of another bar law was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bar law \"recording_elastic\""), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("\"bilinear\""), std::string::npos) << e.what();
+  }
 }
 
 } // namespace

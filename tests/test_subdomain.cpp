@@ -170,8 +170,9 @@ void expect_subdomains_match_whole_body(ProcessGrid grid, bool loaded) {
       index_t g = 0;
       if (S::owned_bar(s, lat, b, g)) {
         ++owned_bars;
-        ASSERT_EQ(s.sim().bar_state_value(0, b), whole.bar_state_value(0, g))
-            << "rank " << rank << " bar " << g;
+        for (std::size_t a = 0; a < whole.bar_state_arrays().size(); ++a)
+          ASSERT_EQ(s.sim().bar_state_value(a, b), whole.bar_state_value(a, g))
+              << "rank " << rank << " bar " << g << " " << whole.bar_state_arrays()[a].name;
       }
     }
   }

@@ -64,48 +64,39 @@ double RunBody::reaction_term(const Simulation& sim, index_t node, int component
   return component == 0 ? f.x + l.x : component == 1 ? f.y + l.y : f.z + l.z;
 }
 
-template <class F> void RunBody::for_each_owned_piece(F&& visit) {
-  // u_n and u_{n-1}, x, y and z (arrays 0 to 5 of the body's nodes), then the histories (after
-  // them): a piece per span of owned nodes or bars.
-  const std::uint64_t nodes = lattice().num_nodes();
+checkpoint::Progress RunBody::body_progress() const {
+  checkpoint::Progress p;
+  p.step = step_count();
+  p.dt = dt_;
+  p.nodes = lattice().num_nodes();
+  p.bars = lattice().num_bars();
+  p.law = std::string(sim().law_name());
+  p.arrays = sim().state_arrays();
+  return p;
+}
+
+template <class F> void RunBody::for_each_owned_piece(const checkpoint::Progress& p, F&& visit) {
+  // Each array of the state in turn, a piece per span of the nodes or bars this process owns.
   std::vector<double>& buf = send_;
-  for (bool previous : {false, true})
-    for (const Span& s : node_spans(true)) {
+  for (std::size_t a = 0; a < p.arrays.size(); ++a)
+    for (const Span& s : p.arrays[a].per_bar ? bar_spans(true) : node_spans(true)) {
       buf.clear();
-      sim().append_displacements(s.local_first, s.count, buf, previous);
-      for (std::uint64_t d = 0; d < 3; ++d)
-        visit(((previous ? 3 : 0) + d) * nodes + s.global_first, buf.data() + d * s.count, s.count);
+      sim().append_state(a, s.local_first, s.count, buf);
+      visit(p.array_place(a) + s.global_first, buf.data(), s.count);
     }
-  for (const Span& s : bar_spans(true)) {
-    buf.clear();
-    sim().append_bar_states(0, s.local_first, s.count, buf);
-    visit(6 * nodes + s.global_first, buf.data(), s.count);
-  }
 }
 
 void RunBody::write_checkpoint(const std::string& path, const std::string& meta) {
   namespace ck = checkpoint;
-  const Ledger::State ledger = collect_ledger_and_events();
+  ck::Progress p = body_progress();
+  p.ledger = collect_ledger_and_events();
   std::sort(events_.begin(), events_.end(), event_before); // (kept: written at the next report)
-  const Lattice& body = lattice();
-  const std::uint64_t nodes = body.num_nodes(), bars = body.num_bars();
   std::string progress;
   std::uint64_t sum = 0;
   if (writes()) {
-    ck::put(progress, step_count());
-    ck::put(progress, dt_);
-    double state[Ledger::State::kDoubles];
-    ledger.write(state);
-    ck::put(progress, state);
-    ck::put(progress, report_);
-    ck::put(progress, nodes);
-    ck::put(progress, bars);
-    ck::put(progress, static_cast<std::uint64_t>(events_.size()));
-    for (const Event& e : events_) {
-      ck::put(progress, e.bar);
-      ck::put(progress, e.state);
-      ck::put(progress, e.step);
-    }
+    p.report = report_;
+    p.events = events_;
+    progress = ck::progress_bytes(p);
     sum = ck::fnv1a(meta.data(), meta.size()) + ck::fnv1a(progress.data(), progress.size());
   }
   double sizes[2] = {static_cast<double>(meta.size()), static_cast<double>(progress.size())};
@@ -113,7 +104,7 @@ void RunBody::write_checkpoint(const std::string& path, const std::string& meta)
   const std::uint64_t at = ck::Header::arrays_offset(static_cast<std::uint64_t>(sizes[0]),
                                                      static_cast<std::uint64_t>(sizes[1]));
   SharedFile file(path);
-  for_each_owned_piece([&](std::uint64_t place, const double* v, index_t count) {
+  for_each_owned_piece(p, [&](std::uint64_t place, const double* v, index_t count) {
     for (index_t i = 0; i < count; ++i)
       sum += ck::word_hash(place + i, v[i]);
     file.write_at(at + 8 * place, v, 8 * std::size_t{count});
@@ -131,79 +122,39 @@ void RunBody::write_checkpoint(const std::string& path, const std::string& meta)
 std::string RunBody::read_checkpoint(const std::string& path) {
   namespace ck = checkpoint;
   const ck::Header h = ck::read_header(path);
-  const Lattice& body = lattice();
-  const std::uint64_t nodes = body.num_nodes(), bars = body.num_bars();
-  std::size_t pos = 0;
-  std::uint64_t step = 0, file_nodes = 0, file_bars = 0, pending = 0;
-  double dt = 0.0, state[Ledger::State::kDoubles];
-  EnergyReport report{};
-  ck::get(h.progress, pos, step);
-  ck::get(h.progress, pos, dt);
-  ck::get(h.progress, pos, state);
-  ck::get(h.progress, pos, report);
-  ck::get(h.progress, pos, file_nodes);
-  ck::get(h.progress, pos, file_bars);
-  if (file_nodes != nodes || file_bars != bars)
-    throw InputError(fmt::format("{}: a checkpoint of a body of {} nodes and {} bars; this case "
-                                 "has {} and {}",
-                                 path, file_nodes, file_bars, nodes, bars));
-  if (dt != dt_)
-    throw InputError(fmt::format("{}: its time step {:.17g} s differs from this case's {:.17g} s",
-                                 path, dt, dt_));
-  const std::uint64_t at = h.arrays_at(), expected = at + 8 * (6 * nodes + bars);
-  if (h.file_bytes != expected)
-    throw InputError(fmt::format("{}: truncated checkpoint ({} bytes, {} expected)", path,
-                                 h.file_bytes, expected));
-  std::vector<Event> events;
-  ck::get(h.progress, pos, pending);
-  for (std::uint64_t i = 0; i < pending; ++i) {
-    Event e{};
-    ck::get(h.progress, pos, e.bar);
-    ck::get(h.progress, pos, e.state);
-    ck::get(h.progress, pos, e.step);
-    events.push_back(e);
-  }
-  // The window's nodes and bars (owned and ghosts), each value from its place.
+  ck::Progress p = ck::read_progress(h, path);
+  ck::check_resumes(p, h, body_progress(), path);
+  // The window's nodes and bars (owned and ghosts), each array's values from their places.
   std::ifstream in(path, std::ios::binary);
   std::vector<double>& buf = send_;
-  auto read_piece = [&](std::uint64_t place, double* v, index_t count) {
-    in.seekg(static_cast<std::streamoff>(at + 8 * place));
-    if (!in.read(reinterpret_cast<char*>(v), static_cast<std::streamsize>(8 * std::size_t{count})))
-      throw InputError(fmt::format("{}: cannot read the checkpoint", path));
-  };
+  const std::uint64_t at = h.arrays_at();
   Simulation& s = sim();
-  for (bool previous : {false, true})
-    for (const Span& sp : node_spans(false)) {
-      buf.resize(3 * std::size_t{sp.count});
-      for (std::uint64_t d = 0; d < 3; ++d)
-        read_piece(((previous ? 3 : 0) + d) * nodes + sp.global_first, buf.data() + d * sp.count,
-                   sp.count);
-      s.assign_displacements(sp.local_first, sp.count, buf.data(), previous);
+  for (std::size_t a = 0; a < p.arrays.size(); ++a)
+    for (const Span& sp : p.arrays[a].per_bar ? bar_spans(false) : node_spans(false)) {
+      buf.resize(sp.count);
+      in.seekg(static_cast<std::streamoff>(at + 8 * (p.array_place(a) + sp.global_first)));
+      if (!in.read(reinterpret_cast<char*>(buf.data()),
+                   static_cast<std::streamsize>(8 * std::size_t{sp.count})))
+        throw InputError(fmt::format("{}: cannot read the checkpoint", path));
+      s.assign_state(a, sp.local_first, sp.count, buf.data());
     }
-  for (const Span& sp : bar_spans(false)) {
-    buf.resize(sp.count);
-    read_piece(6 * nodes + sp.global_first, buf.data(), sp.count);
-    s.assign_bar_states(0, sp.local_first, sp.count, buf.data());
-  }
   // The checksum: every process adds the terms of what it owns.
   std::uint64_t sum = writes() ? ck::fnv1a(h.meta.data(), h.meta.size()) +
                                      ck::fnv1a(h.progress.data(), h.progress.size())
                                : 0;
-  for_each_owned_piece([&](std::uint64_t place, const double* v, index_t count) {
+  for_each_owned_piece(p, [&](std::uint64_t place, const double* v, index_t count) {
     for (index_t i = 0; i < count; ++i)
       sum += ck::word_hash(place + i, v[i]);
   });
   if (wrapping_sum_over_processes(sum) != h.checksum)
     throw InputError(fmt::format("{}: checkpoint checksum mismatch: the file is corrupt", path));
-  Ledger::State ledger;
-  ledger.read(state);
-  initial_ = ledger.initial;
+  initial_ = p.ledger.initial;
   // The body's accumulated work and damping go to the first process; the others add from zero.
   if (!writes())
-    ledger = Ledger::State{{}, {}, initial_};
-  s.restore_progress(step, ledger, report, {});
-  report_ = report;
-  events_ = writes() ? std::move(events) : std::vector<Event>{};
+    p.ledger = Ledger::State{{}, {}, initial_};
+  s.restore_progress(p.step, p.ledger, p.report, {});
+  report_ = p.report;
+  events_ = writes() ? std::move(p.events) : std::vector<Event>{};
   return h.meta;
 }
 

@@ -21,6 +21,7 @@
 
 #include "app/case_run.hpp"
 #include "energy/ledger.hpp"
+#include "io/checkpoint.hpp"
 #include "parallel/subdomain.hpp"
 
 #include <array>
@@ -128,9 +129,12 @@ protected:
   std::vector<double> send_;  // gathers' and checkpoint pieces' buffer, kept from call to call
 
 private:
-  // Calls visit(place, values, count) for every piece of the checkpoint's arrays this process
+  // The body's progress as a checkpoint records it, without the ledger, report and events: its
+  // step, dt, counts, bar law and state arrays.
+  checkpoint::Progress body_progress() const;
+  // Calls visit(place, values, count) for every piece of the state arrays of `p` this process
   // owns: its values at places counted in doubles from the arrays' start (io/checkpoint.hpp).
-  template <class F> void for_each_owned_piece(F&& visit);
+  template <class F> void for_each_owned_piece(const checkpoint::Progress& p, F&& visit);
 };
 
 // One process: steps c.sim.

@@ -2,25 +2,30 @@
 //
 //   magic "LDEMCKPT", format version (u32), meta bytes (u64), progress bytes (u64), checksum
 //   (u64), the meta (the run's state: its case, where its outputs stand), the progress (the
-//   body's step, dt, energy ledger, last report, events not yet written), zeros up to a
-//   multiple of 8 bytes, then arrays of doubles in the body's order: ux, uy, uz (u_n) and wx,
-//   wy, wz (u_{n-1}) per node, h per bar.
+//   body's step, dt, energy ledger, last report, node and bar counts, its bar law, the list of
+//   arrays that follow by name, and the events not yet written), zeros up to a multiple of 8
+//   bytes, then the arrays of doubles in that list's order, each in the body's order: per node
+//   u_n and u_{n-1} along x, y and z, per bar the bar law's state arrays (Simulation::
+//   state_arrays). A law's state is thus saved and restored by name, whatever the law.
 //
 // The checksum is FNV-1a of meta and progress plus, modulo 2^64, a hash of every array word
 // with its place: it adds over the pieces of the arrays, so that the processes of a run write
 // and check their parts each and the file is the same whoever wrote it.
 #pragma once
 
+#include "energy/ledger.hpp"
+#include "solver/simulation.hpp"
 #include "util/error.hpp"
 
 #include <cstdint>
 #include <cstring>
 #include <string>
+#include <vector>
 
 namespace ldem::checkpoint {
 
 inline constexpr char kMagic[8] = {'L', 'D', 'E', 'M', 'C', 'K', 'P', 'T'};
-inline constexpr std::uint32_t kVersion = 3;
+inline constexpr std::uint32_t kVersion = 4;
 inline constexpr std::uint64_t kHeaderBytes = 8 + 4 + 3 * 8;
 
 template <class T> void put(std::string& out, const T& v) {
@@ -61,5 +66,30 @@ Header read_header(const std::string& path);
 // The header bytes (magic to checksum) of a checkpoint with this meta and progress.
 std::string header_bytes(const std::string& meta, const std::string& progress,
                          std::uint64_t checksum);
+
+// Where the body stands: what a checkpoint holds besides its meta and its arrays' values.
+struct Progress {
+  std::uint64_t step = 0;
+  double dt = 0.0;
+  Ledger::State ledger;
+  EnergyReport report{};
+  std::uint64_t nodes = 0, bars = 0;
+  std::string law; // the bar law's name
+  std::vector<Simulation::NamedArray> arrays;
+  std::vector<Event> events; // not yet written
+  // Where array a starts, in doubles from the arrays' start, and the doubles of all arrays.
+  std::uint64_t array_place(std::size_t a) const;
+  std::uint64_t array_doubles() const { return array_place(arrays.size()); }
+};
+std::string progress_bytes(const Progress& p);
+// The progress of the checkpoint at `path` (its header h). Throws InputError naming the file
+// when the progress is truncated.
+Progress read_progress(const Header& h, const std::string& path);
+// Throws InputError naming `path` unless the checkpoint `file` (header h) can resume the body
+// `body` (this case's counts, dt, bar law and arrays; `file` read by read_progress): a body of
+// other node or bar counts, another time step, another bar law or other state arrays, or a
+// file whose length is not that of its arrays.
+void check_resumes(const Progress& file, const Header& h, const Progress& body,
+                   const std::string& path);
 
 } // namespace ldem::checkpoint

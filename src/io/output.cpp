@@ -75,7 +75,8 @@ std::vector<float> to_float(const std::vector<double>& v) {
 
 } // namespace
 
-VtuLayout vtu_layout(index_t nn, index_t nb, bool fields) {
+VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim) {
+  const bool fields = sim.table().per_bar();
   VtuLayout l;
   std::string s = "<?xml version=\"1.0\"?>\n"
                   "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
@@ -100,6 +101,16 @@ VtuLayout vtu_layout(index_t nn, index_t nb, bool fields) {
   tag(VtuLayout::Damage, "Float32", "damage", 1, fb);
   tag(VtuLayout::State, "UInt8", "state", 1, nb);
   tag(VtuLayout::Force, "Float32", "axial_force", 1, fb);
+  const std::span<const StateArray> states = sim.bar_state_arrays();
+  for (std::size_t a = 0; a < states.size(); ++a)
+    if (states[a].in_snapshots) {
+      s += fmt::format("<DataArray type=\"Float32\" Name=\"{}\" NumberOfComponents=\"1\" "
+                       "format=\"appended\" offset=\"{}\"/>\n",
+                       states[a].name, offset);
+      l.states.push_back(a);
+      l.state_at.push_back(offset);
+      offset += sizeof(std::uint64_t) + fb;
+    }
   if (fields) {
     tag(VtuLayout::E, "Float32", "E", 1, fb);
     tag(VtuLayout::Gf, "Float32", "Gf", 1, fb);
@@ -116,6 +127,8 @@ VtuLayout vtu_layout(index_t nn, index_t nb, bool fields) {
   for (int a = 0; a < VtuLayout::kArrays; ++a)
     if (l.present[a])
       l.at[a] += s.size();
+  for (std::uint64_t& at : l.state_at)
+    at += s.size();
   l.size = s.size() + offset + std::char_traits<char>::length(VtuLayout::trailer);
   l.header = std::move(s);
   return l;
@@ -159,7 +172,8 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
     static_block_.insert(static_block_.end(), q, q + bytes);
   };
   const std::uint64_t fb = 4ull * nb;
-  const VtuLayout layout = vtu_layout(nn, nb, sim.table().per_bar());
+  const VtuLayout layout = vtu_layout(nn, nb, sim);
+  law_states_ = layout.states;
   if (sim.table().per_bar()) {
     // The material fields per bar: E, Gf (its fracture energy per fracture area, eq. 11),
     // e_p and e_r.
@@ -232,6 +246,12 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   block(damage_f_.data(), damage_f_.size() * sizeof(float));
   block(state_.data(), state_.size());
   block(force_f_.data(), force_f_.size() * sizeof(float));
+  for (std::size_t a : law_states_) {
+    law_state_.clear();
+    sim.append_bar_states(a, 0, nb_, law_state_);
+    law_state_f_.assign(law_state_.begin(), law_state_.end());
+    block(law_state_f_.data(), law_state_f_.size() * sizeof(float));
+  }
   out.write(static_block_.data(), static_block_.size());
   out.write(VtuLayout::trailer);
   out.commit();

@@ -40,8 +40,9 @@ void write_file(const std::string& path, const std::string& text);
 
 // One VTK XML unstructured grid of the lattice at the current state: nodes at their reference
 // positions with displacement and velocity, bars as lines with state (0 intact, 1 softening,
-// 2 broken), damage (dissipated energy over Gf A^f, 0 to 1), axial force and, where fields
-// vary, E, Gf, e_p, e_r. Raw binary appended data, values in single precision.
+// 2 broken), damage (dissipated energy over Gf A^f, 0 to 1), axial force, the bar law's state
+// arrays that it shows (by their names; none for the bilinear law) and, where fields vary, E,
+// Gf, e_p, e_r. Raw binary appended data, values in single precision.
 void write_lattice_vtu(const Simulation& sim, const std::string& path);
 
 // Where each array of such a file lies: the XML header (which ends where the appended data
@@ -69,14 +70,24 @@ struct VtuLayout {
   bool present[kArrays] = {};
   std::uint64_t at[kArrays] = {};    // file position of the array's byte count
   std::uint64_t bytes[kArrays] = {}; // the count
-  std::uint64_t size = 0;            // of the whole file
+  // The bar law's state arrays that the snapshots carry (StateArray::in_snapshots), Float32 per
+  // bar after the axial force, each under its name: its index among the law's state arrays
+  // (Simulation::bar_state_arrays) and the file position of its byte count.
+  std::vector<std::size_t> states;
+  std::vector<std::uint64_t> state_at;
+  std::uint64_t size = 0; // of the whole file
   static constexpr const char* trailer = "\n</AppendedData>\n</VTKFile>\n";
   // The position of the first byte of value `index` of an array of `width`-byte values.
   std::uint64_t value_at(Array a, std::uint64_t index, std::uint64_t width) const {
     return at[a] + sizeof(std::uint64_t) + index * width;
   }
+  std::uint64_t state_value_at(std::size_t s, std::uint64_t index) const {
+    return state_at[s] + sizeof(std::uint64_t) + index * sizeof(float);
+  }
 };
-VtuLayout vtu_layout(index_t nodes, index_t bars, bool fields);
+// The layout of a snapshot of `sim`'s body (`nodes` and `bars`: the whole body's): the fields
+// where its material varies, the law's state arrays it carries.
+VtuLayout vtu_layout(index_t nodes, index_t bars, const Simulation& sim);
 
 // The same for a series of snapshots of one run: what does not change (reference positions,
 // connectivity, material fields, the XML header with every offset) is prepared once, so a
@@ -93,6 +104,9 @@ private:
   std::vector<float> disp_, vel_, damage_f_, force_f_;
   std::vector<std::uint8_t> state_;
   std::vector<double> damage_, force_;
+  std::vector<std::size_t> law_states_; // the law's state arrays written (VtuLayout::states)
+  std::vector<double> law_state_;
+  std::vector<float> law_state_f_;
 };
 // The ParaView collection that lists the snapshots.
 std::string lattice_pvd(const std::vector<std::pair<double, std::string>>& snapshots);

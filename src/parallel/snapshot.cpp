@@ -7,8 +7,7 @@
 namespace ldem {
 
 SubdomainVtuWriter::SubdomainVtuWriter(const SubdomainRun& run, const Lattice& whole)
-    : whole_(whole),
-      layout_(vtu_layout(whole.num_nodes(), whole.num_bars(), run.sim().table().per_bar())),
+    : whole_(whole), layout_(vtu_layout(whole.num_nodes(), whole.num_bars(), run.sim())),
       nodes_(subdomain_node_spans(run.subdomain(), whole, true)),
       bars_(subdomain_bar_spans(run.subdomain(), whole, true)) {}
 
@@ -33,6 +32,9 @@ void SubdomainVtuWriter::write(const SubdomainRun& run, const std::string& path)
     for (int a = 0; a < VtuLayout::kArrays; ++a)
       if (l.present[a])
         file.write_at(l.at[a], &l.bytes[a], sizeof l.bytes[a]);
+    const std::uint64_t state_bytes = 4ull * whole_.num_bars();
+    for (const std::uint64_t at : l.state_at)
+      file.write_at(at, &state_bytes, sizeof state_bytes);
     const std::size_t n = std::strlen(VtuLayout::trailer);
     file.write_at(l.size - n, VtuLayout::trailer, n);
   }
@@ -73,6 +75,13 @@ void SubdomainVtuWriter::write(const SubdomainRun& run, const std::string& path)
     fill<float>(buf_, s.count, 1,
                 [&](index_t q, float* o) { *o = static_cast<float>(force_[lb + q]); });
     put(VtuLayout::Force, s, 4);
+    for (std::size_t q = 0; q < l.states.size(); ++q) {
+      law_state_.clear();
+      sim.append_bar_states(l.states[q], lb, s.count, law_state_);
+      fill<float>(buf_, s.count, 1,
+                  [&](index_t i, float* o) { *o = static_cast<float>(law_state_[i]); });
+      file.write_at(l.state_value_at(q, gb), buf_.data(), buf_.size());
+    }
     if (fields) {
       const Lattice& local = sim.lattice();
       const BarTable& table = sim.table();

@@ -26,7 +26,8 @@ private:
   std::vector<char> buf_;          // one span's values, reused
   std::vector<std::uint8_t> state_;
   std::vector<double> damage_, force_;
-  std::vector<Vec3> u_, v_; // one span's node states, reused
+  std::vector<Vec3> u_, v_;       // one span's node states, reused
+  std::vector<double> law_state_; // one span's values of a law's state array, reused
 };
 
 } // namespace ldem

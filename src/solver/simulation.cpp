@@ -360,6 +360,49 @@ void Simulation::assign_bar_states(std::size_t array, index_t first, index_t cou
   std::copy(in, in + count, core_->states[array].begin() + first);
 }
 
+namespace {
+// u_n, then u_{n-1}, each along x, y and z: the node arrays of the state.
+constexpr const char* kNodeArrays[6] = {"u.x",          "u.y",          "u.z",
+                                        "u_previous.x", "u_previous.y", "u_previous.z"};
+} // namespace
+
+std::vector<Simulation::NamedArray> Simulation::state_arrays() const {
+  std::vector<NamedArray> out;
+  for (const char* name : kNodeArrays)
+    out.push_back({name, false});
+  for (const StateArray& a : law_->state_arrays)
+    out.push_back({std::string(a.name), true});
+  return out;
+}
+
+void Simulation::append_state(std::size_t array, index_t first, index_t count,
+                              std::vector<double>& out) const {
+  if (array >= std::size(kNodeArrays)) {
+    append_bar_states(array - std::size(kNodeArrays), first, count, out);
+    return;
+  }
+  const SimulationCore& c = *core_;
+  const AlignedVector<double>* u[6] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
+  c.for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
+    out.insert(out.end(), u[array]->begin() + q, u[array]->begin() + q + run);
+  });
+}
+
+void Simulation::assign_state(std::size_t array, index_t first, index_t count, const double* in) {
+  if (array >= std::size(kNodeArrays)) {
+    assign_bar_states(array - std::size(kNodeArrays), first, count, in);
+    return;
+  }
+  SimulationCore& c = *core_;
+  if (array < 3)
+    c.forget_motion(first, count);
+  AlignedVector<double>* u[6] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
+  c.for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
+    std::copy(in, in + run, u[array]->begin() + q);
+    in += run;
+  });
+}
+
 double Simulation::bar_state_value(std::size_t array, index_t bar) const {
   return core_->states[array][bar];
 }

@@ -27,6 +27,7 @@
 #include <functional>
 #include <memory>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -190,6 +191,18 @@ public:
   void append_bar_states(std::size_t array, index_t first, index_t count,
                          std::vector<double>& out) const;
   void assign_bar_states(std::size_t array, index_t first, index_t count, const double* in);
+  // The whole state as named arrays, what a checkpoint holds besides the run's progress: per
+  // node u_n and u_{n-1} along x, y and z, then per bar the law's state arrays by their names.
+  // append_state and assign_state take array `array` of that list for nodes or bars
+  // [first, first + count).
+  struct NamedArray {
+    std::string name;
+    bool per_bar;
+  };
+  std::vector<NamedArray> state_arrays() const;
+  void append_state(std::size_t array, index_t first, index_t count,
+                    std::vector<double>& out) const;
+  void assign_state(std::size_t array, index_t first, index_t count, const double* in);
   // After the displacements and states are assigned: the step count, the energy
   // accumulators (Ledger::state), the last report and the events not yet taken: what a
   // checkpoint holds (io/checkpoint.hpp) besides the arrays. The rows' damage flags are derived
