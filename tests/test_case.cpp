@@ -242,3 +242,75 @@ function = [{ type = "exp_rise", tau = 1e-5 }]
 
 } // namespace
 } // namespace ldem
+
+#include "app/case_run.hpp"
+
+#include <filesystem>
+#include <fstream>
+
+namespace ldem {
+namespace {
+
+// The message build_case gives for a case text (written to a file), or "" if it accepts it.
+std::string build_error_of(const std::string& text) {
+  const std::string path = ::testing::TempDir() + "ldem_conditions_case.toml";
+  std::ofstream(path) << text;
+  try {
+    build_case(path, nullptr, false);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Conditions that contradict each other are refused before a run, with the tables, their node
+// sets, the DOF, the count of nodes and the first of them. The good case's top face has
+// (4 + 1) x (1 + 1) = 10 corner nodes, the first of them node 40 (corner (0, 0, 4)) at
+// z = 4 x 0.01 m.
+TEST(CaseFile, ConditionsThatContradictEachOtherAreRefused) {
+  ASSERT_EQ(build_error_of(kGood), "");
+  // Two velocities on the same DOF of the same nodes.
+  std::string e = build_error_of(kGood + R"(
+[[velocity]]
+set = "top"
+dofs = "z"
+value = [0, 0, -0.01]
+)");
+  EXPECT_NE(e.find("ldem_conditions_case.toml: [[velocity]] tables 1 (node set \"top\") and 2 "
+                   "(node set \"top\") both impose the z velocity on 10 nodes (the first: node 40 "
+                   "at (0, 0, 0.04) m)"),
+            std::string::npos)
+      << e;
+  // A DOF both held and driven.
+  e = build_error_of(kGood + R"(
+[[fixed]]
+set = "top"
+dofs = "xz"
+)");
+  EXPECT_NE(e.find("[[velocity]] table 1 (node set \"top\") imposes the z velocity on 10 nodes "
+                   "that [[fixed]] table 1 (node set \"top\") holds (the first: node 40"),
+            std::string::npos)
+      << e;
+  // Plane strain holds y; a velocity that drives y contradicts it.
+  e = build_error_of(edit("dofs = \"z\"", "dofs = \"yz\""));
+  EXPECT_NE(e.find("[[velocity]] table 1 (node set \"top\") imposes the y velocity on its 10 "
+                   "nodes, but plane_strain = \"y\" holds y at every node"),
+            std::string::npos)
+      << e;
+  // What does not contradict: two velocities on other DOF of the same nodes, a fixed DOF that
+  // no velocity drives, one that plane strain also holds.
+  EXPECT_EQ(build_error_of(kGood + R"(
+[[fixed]]
+set = "top"
+dofs = "y"
+
+[[velocity]]
+set = "top"
+dofs = "x"
+value = [0.01, 0, 0]
+)"),
+            "");
+}
+
+} // namespace
+} // namespace ldem

@@ -51,6 +51,70 @@ std::string dofs_text(DofMask m) {
   return s;
 }
 
+// Conditions that contradict each other: two [[velocity]] tables imposing the same DOF of a
+// node (each would book the reaction's work and the node's kinetic energy, and the last one's
+// target would win), a DOF a [[fixed]] table holds and a [[velocity]] table drives, and a
+// [[velocity]] table driving the component plane strain holds. Throws InputError naming the
+// tables, their node sets, the DOF, how many nodes and the first of them. ([[fixed]] tables
+// may overlap each other and plane strain: they all hold the DOF at zero.)
+void check_conditions_agree(const CaseSpec& s, const std::vector<NodeSet>& sets,
+                            const Lattice& lat) {
+  constexpr char kAxis[3] = {'x', 'y', 'z'};
+  // The nodes two sets share (node sets are sorted): how many, and the first.
+  const auto shared = [](const std::vector<index_t>& a, const std::vector<index_t>& b) {
+    std::size_t count = 0;
+    index_t first = 0;
+    for (auto p = a.begin(), q = b.begin(); p != a.end() && q != b.end();)
+      if (*p < *q) {
+        ++p;
+      } else if (*q < *p) {
+        ++q;
+      } else {
+        first = count++ == 0 ? *p : first;
+        ++p;
+        ++q;
+      }
+    return std::pair{count, first};
+  };
+  const auto where = [&](index_t n) {
+    const Vec3 x = lat.position(n);
+    return fmt::format("node {} at ({:g}, {:g}, {:g}) m", n, x.x, x.y, x.z);
+  };
+  for (std::size_t t = 0; t < s.velocities.size(); ++t) {
+    const VelocitySpec& v = s.velocities[t];
+    const std::vector<index_t>& nodes = set_named(sets, v.set).nodes;
+    const std::string table = fmt::format("[[velocity]] table {} (node set \"{}\")", t + 1, v.set);
+    for (int d = 0; d < 3; ++d) {
+      const DofMask bit = static_cast<DofMask>(1u << d);
+      if (!(v.dofs & bit))
+        continue;
+      if (s.plane_strain_axis == d)
+        throw InputError(fmt::format(
+            "{} imposes the {} velocity on its {} nodes, but plane_strain = \"{}\" holds {} at "
+            "every node: leave {} out of the table's dofs",
+            table, kAxis[d], nodes.size(), kAxis[d], kAxis[d], kAxis[d]));
+      for (std::size_t f = 0; f < s.fixed.size(); ++f)
+        if (s.fixed[f].dofs & bit)
+          if (const auto [count, first] = shared(nodes, set_named(sets, s.fixed[f].set).nodes);
+              count > 0)
+            throw InputError(fmt::format(
+                "{} imposes the {} velocity on {} nodes that [[fixed]] table {} (node set \"{}\") "
+                "holds (the first: {}): a DOF is either held or driven; leave these nodes out of "
+                "one of the two sets",
+                table, kAxis[d], count, f + 1, s.fixed[f].set, where(first)));
+      for (std::size_t u = 0; u < t; ++u)
+        if (s.velocities[u].dofs & bit)
+          if (const auto [count, first] = shared(set_named(sets, s.velocities[u].set).nodes, nodes);
+              count > 0)
+            throw InputError(fmt::format(
+                "[[velocity]] tables {} (node set \"{}\") and {} (node set \"{}\") both impose "
+                "the {} velocity on {} nodes (the first: {}): one velocity per DOF; let the sets "
+                "not overlap",
+                u + 1, s.velocities[u].set, t + 1, v.set, kAxis[d], count, where(first)));
+    }
+  }
+}
+
 } // namespace
 
 const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name) {
@@ -85,6 +149,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       cond.velocities.push_back({set_named(c.sets, v.set), v.dofs, v.value, v.scale});
     for (const LoadSpec& l : s.loads)
       cond.loads.push_back({set_named(c.sets, l.set), l.force, l.scale});
+    check_conditions_agree(s, c.sets, lat);
     for (const ProbeSpec& p : s.probes) {
       index_t best = 0;
       if (p.kind == ProbeSpec::Kind::BarForce) {

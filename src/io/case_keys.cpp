@@ -68,7 +68,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"fixed", "dofs", "string", "\"xyz\"", "", -kInf, kInf, false, false, "letters x, y, z", "Which DOF."},
 
     {"velocity", "set", "string", "required", "", -kInf, kInf, false, false, "", "Node set driven at an imposed velocity."},
-    {"velocity", "dofs", "string", "\"xyz\"", "", -kInf, kInf, false, false, "letters x, y, z", "Which DOF are imposed (the others stay free)."},
+    {"velocity", "dofs", "string", "\"xyz\"", "", -kInf, kInf, false, false, "letters x, y, z", "Which DOF are imposed (the others stay free). A DOF of a node may be imposed by one [[velocity]] table only, and not one a [[fixed]] table or plane strain holds: contradicting conditions are refused."},
     {"velocity", "value", "[3 floats]", "required", "m/s", -kInf, kInf, false, false, "", "Velocity, scaled by the time function."},
     {"velocity", "ramp", "float", "-", "s", 0, kInf, true, false, "", "Shortcut for function = [{type = \"ramp\", value = 1, duration = ramp}]."},
 
