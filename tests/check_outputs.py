@@ -46,6 +46,14 @@ def main():
                 "analysis"]:
         if key not in summary:
             fail(f"summary.json lacks {key}")
+    # The run simulated the resolved case's steps, to the time of its last energy row and
+    # snapshot (the step after the last report is not counted; dt is printed to 9 digits).
+    if summary["steps"] != res["steps"]:
+        fail(f"summary.json steps {summary['steps']}, the case's {res['steps']}")
+    if not math.isclose(summary["end_time"], res["steps"] * summary["dt"], rel_tol=1e-8) or \
+            not math.isclose(summary["end_time"], last[0], rel_tol=1e-8):
+        fail(f"summary.json end_time {summary['end_time']}: expected {res['steps']} x dt = "
+             f"the last energy row's time {last[0]}")
     if summary["max_balance_error"] > 0.01:
         fail(f"balance error {summary['max_balance_error']} above 1 %")
     with open(os.path.join(d, "events.csv")) as f:
@@ -80,6 +88,9 @@ def main():
         g = reader.GetOutput()
         if g.GetNumberOfPoints() != res["nodes"] or g.GetNumberOfCells() != res["bars"]:
             fail(f"{name}: {g.GetNumberOfPoints()} points, {g.GetNumberOfCells()} cells")
+    if not math.isclose(times[-1], summary["end_time"], rel_tol=1e-8):
+        fail(f"lattice.pvd: the last snapshot at t = {times[-1]}, the run ends at "
+             f"{summary['end_time']}")
     g = reader.GetOutput()  # the last snapshot: the end of the run
     state = vtk_to_numpy(g.GetCellData().GetArray("state"))
     n_broken_vtu = int((state == 2).sum())

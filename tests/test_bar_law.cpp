@@ -89,6 +89,13 @@ TEST(ElasticEquivalence, FractureAreasAndRatios) {
   EXPECT_NEAR(ratio_n, 0.341, 5e-4);                                  // SPEC's rounded values
   EXPECT_NEAR(ratio_d, 0.350, 5e-4);
   EXPECT_DOUBLE_EQ(kPaperSingleRatio, 0.34);
+  // Eq. 4 as printed counts a diagonal with c_A (2 / sqrt 3) delta L^2, c_A = 3/22 (eq. 5) and
+  // delta = 9/8 at nu = 0.25 (eq. 1): 0.177 L^2 instead of eq. 6's 4/22 = 0.182 L^2, and a split
+  // module would dissipate (2 (3/22) + 4 x 0.177) Gf L^2 = 0.981 Gf L^2 (docs/model.md, 4).
+  const double diag_eq4 = 3.0 / 22.0 * 2.0 / kSqrt3 * eq.delta;
+  EXPECT_DOUBLE_EQ(eq.delta, 9.0 / 8.0);
+  EXPECT_NEAR(diag_eq4, 0.177, 5e-4);
+  EXPECT_NEAR(2 * kFractureAreaNormal + 4 * diag_eq4, 0.981, 5e-4);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -266,6 +273,18 @@ TEST(BilinearLaw, WorkEqualsStoredPlusDissipated) {
   EXPECT_NEAR(W, 0.5 * b.EA * b.e_p * b.e_r * b.l0, 2 * kink_error);
   go_to(0.0);
   check("broken, unloaded", 2);
+}
+
+// The softening branch's slope is -EA e_p / (e_r - e_p) = -EA / (K_r - 1): with K_r = 1.5
+// (e_p = 0.01, e_r = 0.015, EA = 2 N) it is -4 N, twice as steep as the elastic 2 N, and the
+// law follows it down to zero at e_r (K_r < 2: steeper than elastic, yet accepted).
+TEST(BilinearLaw, SofteningSlopeIsMinusEAOverKrMinusOne) {
+  const TestBar b{2.0, 0.5, 0.01, 0.015};
+  const double slope = (b.envelope(0.0125) - b.envelope(0.01)) / 0.0025;
+  EXPECT_NEAR(slope, -b.EA / (b.e_r / b.e_p - 1.0), 1e-12);
+  EXPECT_NEAR(slope, -4.0, 1e-12);
+  EXPECT_NEAR(b.force(0.0125, b.next_history(0.01, 0.0125)), 0.01, 1e-15);
+  EXPECT_EQ(b.force(0.015, b.next_history(0.01, 0.015)), 0.0);
 }
 
 // Eq. 11-12: with e_r = K_r e_p,
@@ -461,6 +480,11 @@ TEST(BarTable, LowDuctilityIsRefusedWithCountCriticalLengthAndPosition) {
   }
   EXPECT_TRUE(contains(msg, "129")) << msg;
   EXPECT_TRUE(contains(msg, "L_cr")) << msg;
+  // The reason is the snap-back (e_r < e_p), not a softening steeper than the elastic branch,
+  // which K_r between 1 and 2 also has and the law follows
+  // (BilinearLaw.SofteningSlopeIsMinusEAOverKrMinusOne).
+  EXPECT_TRUE(contains(msg, "rupture strain would lie below their peak strain")) << msg;
+  EXPECT_FALSE(contains(msg, "unstable")) << msg;
   EXPECT_TRUE(contains(msg, fmt::format("{:.4g}", L_cr))) << msg;
   // A position "(x, y, z)" that is the centre of a normal bar (one of those below one).
   const std::size_t at = msg.find(" at (");

@@ -290,6 +290,11 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   energy->commit();
   events->commit();
   probes->commit();
+  // What the run simulated: up to the time of its last reported state. A run that reaches its
+  // end (time.end, or time.stop_displacement) takes one step more, from that state, whose start
+  // is the report (a step's energies are those at its start); an interrupted or blown-up run
+  // stops before step n. The rate counts every step taken.
+  const std::uint64_t simulated = signal || blew_up ? n : n - 1;
   const std::uint64_t done = n - first;
   const ProcessGrid grid = body.grid();
   write_file(
@@ -302,8 +307,8 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
                   "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
                   "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
                   "  \"interrupted\": {},\n  \"stopped_by\": {},\n  \"analysis\": {{}}\n}}\n",
-                  st.case_path, s.title, lat.num_nodes(), lat.num_bars(), n, body.dt(),
-                  body.stable_step().dt, body.time(), wall,
+                  st.case_path, s.title, lat.num_nodes(), lat.num_bars(), simulated, body.dt(),
+                  body.stable_step().dt, static_cast<double>(simulated) * body.dt(), wall,
                   static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
                   omp_get_max_threads(), process_count(), grid.py, grid.pz,
                   body.numbers().bytes_per_module, st.max_balance, softened, broken,
@@ -329,7 +334,8 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
     fmt::print(stderr, "ldem: fatigue: {}\n", fatigue_report(analyze_fatigue_dir(out_dir)));
   if (plots && s.output.plots)
     plot_command(out_dir);
-  fmt::print(stderr, "ldem: done: {} steps in {:.1f} s, results in {}\n", done, wall, out_dir);
+  fmt::print(stderr, "ldem: done: {} steps to t = {:.4g} s in {:.1f} s, results in {}\n", simulated,
+             static_cast<double>(simulated) * body.dt(), wall, out_dir);
   return 0;
 }
 

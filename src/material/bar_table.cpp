@@ -212,8 +212,10 @@ std::optional<std::string> check_ductility(const DuctilitySummary& s, const Mate
         s.bars_below_one, s.worst_kr, s.L_cr_min, L);
   throw InputError(fmt::format(
       "material: K_r = e_r / e_p < 1 in {} of {} bars (smallest K_r = {:.4g}, bar {} centred at "
-      "({:g}, {:g}, {:g}) m): their softening branch is steeper than the elastic one and the "
-      "explicit solution is unstable. The critical length (eq. 13) is L_cr = {:.4g} m against "
+      "({:g}, {:g}, {:g}) m): their rupture strain would lie below their peak strain, a "
+      "snap-back in strain that the bar law cannot follow (its softening slope, -EA / (K_r - 1), "
+      "is steeper than the elastic one already for K_r < 2 and reverses below 1). The critical "
+      "length (eq. 13) is L_cr = {:.4g} m against "
       "L = {:.4g} m: use modules with L <= L_cr, a larger Gf or a smaller e_p, or set "
       "allow_low_kr = true to run anyway",
       s.bars_below_one, bars, s.worst_kr, s.worst_bar, c.x, c.y, c.z, s.L_cr_min, L));
