@@ -65,6 +65,37 @@ TEST(CaseFile, GoodCaseParsesWithDefaults) {
   EXPECT_DOUBLE_EQ(c.velocities[0].scale(0.5e-4), 1.0);
 }
 
+// A key the reader knows but that does not apply to what its table is (t_start on a ramp, an
+// axis on a random field, a covariance without a correlation length, a courant number without
+// the paper's rule, a point on a reaction probe) is refused like an unknown key, not dropped.
+TEST(CaseFile, KeysThatDoNotApplyAreRefused) {
+  std::string e = error_of(edit("{ type = \"ramp\", duration = 1e-4 }",
+                                "{ type = \"ramp\", duration = 1e-4, t_start = 1e-5 }"));
+  EXPECT_NE(e.find("case.toml:21: velocity[0].function[0].t_start: does not apply to a \"ramp\" "
+                   "term (its keys: type, value, duration)"),
+            std::string::npos)
+      << e;
+  e = error_of(edit("E = 30e9", "E = { type = \"weibull\", mean = 30e9, cv = 0.1, axis = \"x\" }"));
+  EXPECT_NE(e.find("material.E.axis: does not apply to an uncorrelated \"weibull\" field"),
+            std::string::npos)
+      << e;
+  e = error_of(edit("E = 30e9", "E = { type = \"weibull\", mean = 30e9, cv = 0.1, covariance = "
+                                "\"exponential\" }"));
+  EXPECT_NE(e.find("material.E.covariance: does not apply to an uncorrelated"), std::string::npos)
+      << e;
+  EXPECT_EQ(error_of(edit("E = 30e9", "E = { type = \"weibull\", mean = 30e9, cv = 0.1, "
+                                      "correlation_length = 0.02, covariance = \"exponential\" }")),
+            "");
+  e = error_of(edit("end = 1e-4", "end = 1e-4\ncourant = 0.5"));
+  EXPECT_NE(e.find("time.courant: does not apply to rule = \"safety\""), std::string::npos) << e;
+  e = error_of(kGood + "\n[[probe]]\nname = \"r\"\nkind = \"reaction\"\nset = \"top\"\n"
+                       "at = [0, 0, 0]\n");
+  EXPECT_NE(e.find("probe[0].at: does not apply to a \"reaction\" probe (its keys: name, kind, "
+                   "set, component)"),
+            std::string::npos)
+      << e;
+}
+
 TEST(CaseFile, MalformedToml) {
   const std::string e = error_of(edit("L = 0.01", "L = = 0.01"));
   EXPECT_NE(e.find("case.toml:4: malformed TOML"), std::string::npos) << e;

@@ -4,7 +4,6 @@
 #include "analysis/crack.hpp"
 
 #include "analysis/run_data.hpp"
-
 #include "io/output.hpp"
 #include "util/error.hpp"
 
@@ -64,7 +63,7 @@ struct Tracker {
   const Grid& grid;
   const std::vector<double>& dist; // per cell, kInf outside the crack
   const CrackOptions& opt;
-  std::vector<int> comp_of;        // per cell, -1 outside the crack
+  std::vector<int> comp_of; // per cell, -1 outside the crack
   std::vector<Component> comps;
   std::vector<std::vector<int>> by_shell;
 
@@ -247,8 +246,7 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
                             const CrackOptions& o) {
   CrackAnalysis r;
   const double h = g.L / 2.0;
-  const Grid grid{g.a_lo - h, g.n_lo - h, h,
-                  static_cast<int>(std::ceil((g.a_hi - g.a_lo) / h)) + 3,
+  const Grid grid{g.a_lo - h, g.n_lo - h, h, static_cast<int>(std::ceil((g.a_hi - g.a_lo) / h)) + 3,
                   static_cast<int>(std::ceil((g.n_hi - g.n_lo) / h)) + 3};
   const std::size_t ncell = static_cast<std::size_t>(grid.ni) * static_cast<std::size_t>(grid.nj);
   const double sense = g.tip_a >= g.mouth_a ? 1.0 : -1.0;
@@ -366,7 +364,7 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
   r.final_length = pre_length + far;
   for (const CrackPoint& p : broken)
     (dist[static_cast<std::size_t>(grid.cell(p.a, p.n))] < kInf ? r.bars_in_crack
-                                                                 : r.bars_elsewhere)++;
+                                                                : r.bars_elsewhere)++;
 
   // Branching: shells one module wide along the crack, tracked outwards.
   const Tracker tr(grid, dist, o, g.L);
@@ -462,8 +460,7 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
     pa = sa / w;
     pn = sn / w;
   }
-  const double angle_gap =
-      r.branches[order.front()].angle_deg - r.branches[order.back()].angle_deg;
+  const double angle_gap = r.branches[order.front()].angle_deg - r.branches[order.back()].angle_deg;
   if (std::abs(det) > 1e-12 && angle_gap > 10.0) {
     const double ba = down.a - up.a, bn = down.n - up.n;
     const double s = (ba * (-down.dn) - bn * (-down.da)) / det;
@@ -506,7 +503,9 @@ double rayleigh_speed(double E, double nu, double rho) {
   // = (1 - 2 nu) / (2 (1 - nu)); the root in (0, 1), by bisection (the cubic in xi^2 is
   // negative at 0 and positive at 1).
   const double k = (1.0 - 2.0 * nu) / (2.0 * (1.0 - nu));
-  auto f = [&](double x2) { return x2 * x2 * x2 - 8 * x2 * x2 + (24 - 16 * k) * x2 - 16 * (1 - k); };
+  auto f = [&](double x2) {
+    return x2 * x2 * x2 - 8 * x2 * x2 + (24 - 16 * k) * x2 - 16 * (1 - k);
+  };
   double lo = 1e-6, hi = 1.0;
   for (int i = 0; i < 100; ++i) {
     const double mid = 0.5 * (lo + hi);
@@ -519,8 +518,7 @@ double rayleigh_speed(double E, double nu, double rho) {
 std::string crack_report(const CrackAnalysis& r) {
   std::string s = fmt::format("crack: length {:.4g} mm along its path (pre-crack included), "
                               "{} broken bars in it, {} elsewhere; max speed {:.4g} m/s\n",
-                              r.final_length * 1e3, r.bars_in_crack, r.bars_elsewhere,
-                              r.max_speed);
+                              r.final_length * 1e3, r.bars_in_crack, r.bars_elsewhere, r.max_speed);
   if (!r.branching_length)
     return s + "no branching";
   s += fmt::format("first branching at {:.4g} mm from the mouth, point ({:.4g}, {:.4g}) mm; "
@@ -558,7 +556,8 @@ CrackAnalysis analyze_crack_dir(const std::string& dir) {
 
   const char axis[3] = {'x', 'y', 'z'};
   OutputFile tip(dir + "/crack_tip.csv");
-  std::string rows = "time,tip_x,tip_y,speed\n";
+  // The tip's coordinates named by the analysis plane's axes (tip_x, tip_z for a plate in x-z).
+  std::string rows = fmt::format("time,tip_{},tip_{},speed\n", axis[along], axis[normal]);
   for (const TipSample& s : r.tip)
     rows += fmt::format("{:.9g},{:.9g},{:.9g},{:.6g}\n", s.t, s.a, s.n, s.speed);
   tip.write(rows);
@@ -574,14 +573,14 @@ CrackAnalysis analyze_crack_dir(const std::string& dir) {
   j["branch_angles_deg"] = r.branching_length ? angles : nlohmann::ordered_json(nullptr);
   j["secondary_branching"] = r.secondary_branching;
   j["max_crack_speed_m_s"] = r.max_speed;
-  j["speed_before_branching_m_s"] =
-      r.branching_length ? nlohmann::ordered_json(r.speed_before_branching)
-                         : nlohmann::ordered_json(nullptr);
+  j["speed_before_branching_m_s"] = r.branching_length
+                                        ? nlohmann::ordered_json(r.speed_before_branching)
+                                        : nlohmann::ordered_json(nullptr);
   j["rayleigh_speed_m_s"] = cR;
   j["max_crack_speed_over_rayleigh"] = cR > 0 ? r.max_speed / cR : 0.0;
-  j["branching_point_m"] =
-      r.branching_length ? nlohmann::ordered_json::array({r.branch_a, r.branch_n})
-                         : nlohmann::ordered_json(nullptr);
+  j["branching_point_m"] = r.branching_length
+                               ? nlohmann::ordered_json::array({r.branch_a, r.branch_n})
+                               : nlohmann::ordered_json(nullptr);
   nlohmann::ordered_json bs = nlohmann::ordered_json::array();
   for (const BranchInfo& b : r.branches)
     bs.push_back({{"level", b.level},

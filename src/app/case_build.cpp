@@ -1,6 +1,7 @@
 // Building a case: from a case file to a ready Simulation (or, for a distributed run, what
 // each process needs to build its subdomain), and the resolved case the run reports.
 #include "app/case_run.hpp"
+#include "solver/laws.hpp"
 #include "util/error.hpp"
 
 #include <algorithm>
@@ -192,6 +193,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     c.conditions = cond;
     c.options.step = s.step;
     c.options.damping = s.damping;
+    c.options.law = find_law(s.law);
     if (with_simulation) {
       BarTable table(lat, s.material, fields);
       c.warnings = table.warnings();
@@ -233,7 +235,7 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
                            s.plane_strain_axis < 0
                                ? std::string("none")
                                : std::string(1, static_cast<char>('x' + s.plane_strain_axis))}});
-  toml::table mat{{"law", "bilinear"},
+  toml::table mat{{"law", s.law},
                   {"E", s.material.E},
                   {"nu", s.material.nu},
                   {"rho", s.material.rho},

@@ -55,7 +55,7 @@ int modes_command(const std::string& path, int count, int threads) {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  fmt::print("{}: {} x {} x {} modules, {} free DOF of {}, {} broken bars left out\n", path,
+  fmt::print("{}: {} x {} x {} modules, {} free DOF of {}, {} pre-cracked bars left out\n", path,
              lat.nx(), lat.ny(), lat.nz(), free_dof_count(sim), 3ull * lat.num_nodes(),
              sim.broken_count());
   const bool loaded = !c.spec.loads.empty();

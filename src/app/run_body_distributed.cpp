@@ -335,8 +335,9 @@ void DistributedBody::read_report(bool report) {
   const double t = run_->sim().last_report().time;
   if (t == 0.0)
     initial_ = elastic + kinetic.value();
-  report_ = energy_report(t, work.value(), elastic, kinetic.value(), damage, 0.5 * damping2.value(),
-                          initial_);
+  report_ = energy_report(
+      t, work.value(), elastic, kinetic.value(), damage, 0.5 * damping2.value(), initial_,
+      balance_floor(numbers_.ranges.E[1], numbers_.ranges.e_p[1], lattice().volume()));
   if (!report)
     return;
   // Probes: the owner's bar force; a reaction's terms subtracted in the set's order, each

@@ -276,7 +276,7 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
         st.max_balance = std::max(st.max_balance, r.balance_error);
       if (std::chrono::steady_clock::now() - last_flush > std::chrono::seconds(1))
         flush_live();
-      progress->update(n, r.time, st.n_broken + c.precracked.size(), r.balance_error, n == steps);
+      progress->update(n, r.time, st.n_broken, r.balance_error, n == steps);
     }
   }
   if (signal)
@@ -284,7 +284,10 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   if (writes)
     flush_live(); // the last rows and snapshots, within the loop's time
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const auto [softened, broken] = body.softening_and_broken(); // the final state
+  // The final state. Broken bars are those broken during the run (their rupture is in
+  // events.csv, as crack.png counts them); the pre-cracked ones, broken from the start, are
+  // counted apart.
+  const auto [softened, broken] = body.softening_and_broken();
   if (!writes) // the first process reports; the others end with its exit code
     return blew_up ? 3 : signal == SIGTERM ? 143 : signal ? 130 : 0;
   energy->commit();
@@ -311,8 +314,8 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
                   body.stable_step().dt, static_cast<double>(simulated) * body.dt(), wall,
                   static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
                   omp_get_max_threads(), process_count(), grid.py, grid.pz,
-                  body.numbers().bytes_per_module, st.max_balance, softened, broken,
-                  c.precracked.size(), signal ? "true" : "false",
+                  body.numbers().bytes_per_module, st.max_balance, softened,
+                  broken - c.precracked.size(), c.precracked.size(), signal ? "true" : "false",
                   stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\""));
   if (!blow_up.empty()) {
     fmt::print(stderr, "ldem: error: {}\n", blow_up);

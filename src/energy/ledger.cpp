@@ -5,8 +5,12 @@
 
 namespace ldem {
 
+double balance_floor(double E_max, double e_p_max, double volume) {
+  return 1e-9 * 0.5 * E_max * volume * e_p_max * e_p_max;
+}
+
 EnergyReport energy_report(double time, double external_work, double elastic, double kinetic,
-                           double damage, double damping, double initial) {
+                           double damage, double damping, double initial, double floor) {
   EnergyReport r;
   r.time = time;
   r.external_work = external_work;
@@ -17,8 +21,7 @@ EnergyReport energy_report(double time, double external_work, double elastic, do
   r.initial = initial;
   const double input = r.external_work + initial;
   const double held = elastic + kinetic + damage + r.damping_dissipated;
-  // "tiny": below 1e-30 J nothing has happened yet and the ratio would be noise.
-  r.balance_error = std::abs(input - held) / std::max(std::abs(input), 1e-30);
+  r.balance_error = std::abs(input - held) / std::max(std::abs(input), floor);
   return r;
 }
 

@@ -15,12 +15,19 @@ struct EnergyReport {
   double damage_dissipated = 0.0; // sum over bars of the area O-A-P (paper Fig. 1c)
   double damping_dissipated = 0.0;
   double initial = 0.0;       // elastic + kinetic energy at t = 0 (initial velocities)
-  double balance_error = 0.0; // |W + E0 - (U + K + D + Dc)| / max(W + E0, tiny)
+  double balance_error = 0.0; // |W + E0 - (U + K + D + Dc)| / max(|W + E0|, floor): relative
 };
 
-// A report from its energies, with the balance error.
+// A report from its energies, with the balance error relative to the energy put in, W + E0,
+// or to `floor` while that is smaller (balance_floor).
 EnergyReport energy_report(double time, double external_work, double elastic, double kinetic,
-                           double damage, double damping, double initial);
+                           double damage, double damping, double initial, double floor);
+
+// The smallest energy the balance error is taken relative to: a billionth of E V e_p^2 / 2, the
+// energy the body would hold with every bar at its peak strain, with the largest E and e_p of the
+// body (V its volume). Below it nothing has happened yet, and an imbalance of a few of its
+// round-off units reads as what it is, not as an error of 1e13 relative to an input of zero.
+double balance_floor(double E_max, double e_p_max, double volume);
 
 // Accumulates work and damping dissipation step by step with the central-difference
 // identity m (v+ - v-) . (v+ + v-) / 2 = F_n . (u_{n+1} - u_{n-1}) / 2: the increment of

@@ -39,9 +39,9 @@ const std::vector<KeyDecl>& case_keys() {
     {"material", "E", "float or field", "required", "Pa", 0, kInf, true, false, "", "Young's modulus."},
     {"material", "nu", "float", "0.25", "", 0, 0.5, true, true, "", "Poisson's ratio; the lattice is isotropic only at 0.25 (other values give a warning)."},
     {"material", "rho", "float or field", "required", "kg/m^3", 0, kInf, true, false, "", "Density; as a field it is taken at module centres and lumped module by module."},
-    {"material", "Gf", "float or field", "required", "N/m", 0, kInf, true, false, "", "Specific fracture energy."},
+    {"material", "Gf", "float or field", "required", "N/m", 0, kInf, true, false, "", "Specific fracture energy. With e_p given, a field of Gf changes each bar's e_r (its K_r, eq. 12) and not its strength E A e_p, which stays as uniform as E and e_p; with R_f instead, e_p follows Gf bar by bar (eq. 7) and the strength varies too."},
     {"material", "e_p", "float or field", "-", "", 0, kInf, true, false, "", "Strain at peak force; give this or R_f."},
-    {"material", "R_f", "float or field", "-", "", 0, kInf, true, false, "", "Failure factor: e_p = R_f sqrt(Gf / (E (1 - nu^2))) (eq. 7), per bar."},
+    {"material", "R_f", "float or field", "-", "m^-1/2", 0, kInf, true, false, "", "Failure factor: e_p = R_f sqrt(Gf / (E (1 - nu^2))) (eq. 7), per bar, so that a random Gf also makes the strength random."},
     {"material", "e_r", "float or field", "-", "", 0, kInf, true, false, "", "Strain at rupture of the normal bars; then each bar's Gf follows from eq. 11. Default: e_r = K_r e_p with K_r from eq. 12."},
     {"material", "single_ratio", "bool", "false", "", -kInf, kInf, false, false, "", "Use the paper's single A^f/A = 0.34 for both bar kinds (eq. 16)."},
     {"material", "allow_low_kr", "bool", "false", "", -kInf, kInf, false, false, "", "Run even where K_r < 1 (such bars break at e_p, brittle)."},
@@ -134,7 +134,9 @@ std::string case_format_markdown() {
   std::string md =
       "# Case file format\n\n"
       "A case is a TOML file. This page is generated from the declarations in\n"
-      "`src/io/case_keys.cpp` (`ldem case-format` prints it). Unknown keys are errors.\n"
+      "`src/io/case_keys.cpp` (`ldem case-format` prints it). Unknown keys are errors, and so\n"
+      "are keys that do not apply to their table's kind (the meanings below say which: `t_start`\n"
+      "on a `ramp` term, `courant` without `rule = \"paper\"`, `at` on a reaction probe).\n"
       "Tables: `[case]`, `[lattice]`, `[material]`, `[time]`, `[output]`, `[analysis]`; arrays\n"
       "of tables:\n"
       "`[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`, `[[precrack]]`, `[[probe]]`;\n"

@@ -61,6 +61,20 @@ public:
                               : fmt::format("{}: {}: {}", file_, key, msg));
   }
 
+  // Refuses, like an unknown key, a key of `t` that is declared but does not apply to what the
+  // table is (`what`, e.g. a "ramp" term): only `keys` do.
+  void only(const toml::table& t, const std::string& where, const std::string& what,
+            std::initializer_list<std::string_view> keys) const {
+    for (const auto& [key, node] : t)
+      if (std::find(keys.begin(), keys.end(), key.str()) == keys.end()) {
+        std::string list;
+        for (std::string_view k : keys)
+          list += (list.empty() ? "" : ", ") + std::string(k);
+        fail(&node, where + std::string(key.str()),
+             fmt::format("does not apply to {} (its keys: {})", what, list));
+      }
+  }
+
   const KeyDecl& decl(const char* table, const char* key) const {
     for (const KeyDecl& k : case_keys())
       if (std::string(k.table) == table && std::string(k.key) == key)
@@ -256,6 +270,15 @@ public:
              fmt::format("expected a table {{ type = ... }}, got {}", describe((*a)[i])));
       check_known(*term, "function", w);
       const std::string type = get_string(*term, "function", "type", w);
+      const std::string what = fmt::format("a \"{}\" term", type);
+      if (type == "constant")
+        only(*term, w, what, {"type", "value"});
+      else if (type == "ramp")
+        only(*term, w, what, {"type", "value", "duration"});
+      else if (type == "exp_rise")
+        only(*term, w, what, {"type", "value", "tau"});
+      else
+        only(*term, w, what, {"type", "amplitude", "frequency", "t_start", "tau", "n_cycles"});
       auto need = [&](const char* key) {
         const auto v = opt_float(*term, "function", key, w);
         if (!v)
@@ -293,6 +316,16 @@ public:
     check_known(t, "field", w);
     Field f;
     const std::string type = get_string(t, "field", "type", w);
+    const std::string field_kind = fmt::format("a \"{}\" field", type);
+    if (type == "linear")
+      only(t, w, field_kind, {"type", "axis", "values", "at"});
+    else if (type == "table")
+      only(t, w, field_kind, {"type", "axis", "points"});
+    else if (get_float(t, "field", "correlation_length", w) > 0.0)
+      only(t, w, field_kind, {"type", "mean", "cv", "seed", "correlation_length", "covariance"});
+    else
+      only(t, w, "an uncorrelated \"weibull\" field (correlation_length = 0)",
+           {"type", "mean", "cv", "seed", "correlation_length"});
     const std::string axis = get_string(t, "field", "axis", w);
     f.axis = axis[0] - 'x';
     auto pairs = [&](const char* k, const char* what) {
@@ -516,7 +549,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   if (!root.contains("material"))
     r.fail(nullptr, "material", "missing required table [material]");
   r.check_known(mat, "material", "material.");
-  r.get_string(mat, "material", "law", "material.");
+  c.law = r.get_string(mat, "material", "law", "material.");
   const double extent[3] = {c.nx * c.L, c.ny * c.L, c.nz * c.L};
   // A property given as a field keeps a representative value in the MaterialSpec (the mean,
   // or the mean of the grading's values) for the checks and reports made with one number.
@@ -638,6 +671,12 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
                                   : TimeStep::Rule::Safety;
   c.step.safety = r.get_float(time, "time", "safety", "time.");
   c.step.courant = r.get_float(time, "time", "courant", "time.");
+  if (time.contains("safety") && c.step.rule != TimeStep::Rule::Safety)
+    r.fail(time.get("safety"), "time.safety",
+           fmt::format("does not apply to rule = \"{}\" (safety is rule = \"safety\"'s)", rule));
+  if (time.contains("courant") && c.step.rule != TimeStep::Rule::Paper)
+    r.fail(time.get("courant"), "time.courant",
+           fmt::format("does not apply to rule = \"{}\" (courant is rule = \"paper\"'s)", rule));
   if (const auto dt = r.opt_float(time, "time", "dt", "time.")) {
     if (c.step.rule != TimeStep::Rule::Given)
       r.fail(time.get("dt"), "time.dt", "given, but rule is not \"dt\"; set rule = \"dt\"");
@@ -673,11 +712,12 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.analysis.fatigue_band = r.opt_float(an, "analysis", "fatigue_band", "analysis.").value_or(0.0);
   c.analysis.fatigue_unstable_advance =
       r.opt_float(an, "analysis", "fatigue_unstable_advance", "analysis.").value_or(0.0);
-  c.analysis.fatigue_width = r.opt_float(an, "analysis", "fatigue_width", "analysis.").value_or(0.0);
+  c.analysis.fatigue_width =
+      r.opt_float(an, "analysis", "fatigue_width", "analysis.").value_or(0.0);
   // The analyses measure the crack from a pre-crack and the cycles of a load: refuse a case
   // they cannot analyse before it runs.
-  for (const auto& [on, key] : {std::pair{c.analysis.crack, "crack"},
-                                std::pair{c.analysis.fatigue, "fatigue"}})
+  for (const auto& [on, key] :
+       {std::pair{c.analysis.crack, "crack"}, std::pair{c.analysis.fatigue, "fatigue"}})
     if (on && c.precracks.empty())
       r.fail(an.get(key), std::string("analysis.") + key,
              "expected a case with a [[precrack]] (the analysis measures the crack from it), "
@@ -715,6 +755,13 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     ProbeSpec p;
     p.name = r.get_string(t, "probe", "name", w);
     const std::string kind = r.get_string(t, "probe", "kind", w);
+    const std::string what = fmt::format("a \"{}\" probe", kind);
+    if (kind == "bar_force")
+      r.only(t, w, what, {"name", "kind", "at"});
+    else if (kind == "reaction")
+      r.only(t, w, what, {"name", "kind", "set", "component"});
+    else
+      r.only(t, w, what, {"name", "kind", "load"});
     if (kind == "bar_force") {
       p.kind = ProbeSpec::Kind::BarForce;
       const auto at = r.opt_vec3(t, "probe", "at", w);

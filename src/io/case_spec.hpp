@@ -87,6 +87,7 @@ struct CaseSpec {
   double L = 0.0;
   int plane_strain_axis = -1;
   MaterialSpec material;
+  std::string law = "bilinear"; // the bar law (solver/laws.cpp)
   // Properties given as fields (the MaterialSpec then holds a representative value).
   struct Fields {
     std::optional<Field> E, Gf, e_p, e_r, R_f, rho;

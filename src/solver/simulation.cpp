@@ -458,8 +458,10 @@ void Simulation::step(bool report) {
     c.report_work = c.ledger.state().work;
     c.report_work.add(work_half);
     c.report_damping2 = Ledger::twice_damping_at_report(c.ledger.state(), damping);
-    c.report = energy_report(t, c.report_work.value(), elastic, kinetic.value(), damage,
-                             0.5 * c.report_damping2.value(), c.ledger.initial());
+    c.report = energy_report(
+        t, c.report_work.value(), elastic, kinetic.value(), damage, 0.5 * c.report_damping2.value(),
+        c.ledger.initial(),
+        balance_floor(c.table.ranges().E[1], c.table.ranges().e_p[1], c.lat.volume()));
   }
   c.ledger.work().add(load_mid);
   c.ledger.damping().add(damping);

@@ -141,10 +141,10 @@ def crack_speed_png(d):
     ax.grid(alpha=0.3)
     ax.set_title(f"crack tip (speed: centred difference over +-{an['speed_window_s'] * us:.2g} us)",
                  fontsize=10)
-    ax2.plot(t, [float(r["tip_x"]) * 1e3 for r in rows], "k-", lw=1,
-             label=f"tip {an['plane_axes'][0]}")
-    ax2.plot(t, [float(r["tip_y"]) * 1e3 for r in rows], "k--", lw=1,
-             label=f"tip {an['plane_axes'][1]}")
+    along, normal = an["plane_axes"]
+    ax2.plot(t, [float(r["tip_" + along]) * 1e3 for r in rows], "k-", lw=1, label=f"tip {along}")
+    ax2.plot(t, [float(r["tip_" + normal]) * 1e3 for r in rows], "k--", lw=1,
+             label=f"tip {normal}")
     if an.get("branching_length_m") is not None:
         ax2.axhline(an["branching_point_m"][0] * 1e3, color="tab:blue", lw=0.8,
                     label="branching point")
@@ -226,7 +226,8 @@ def energy_png(d):
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     ax2.semilogy(t, [max(float(r["balance_error"]), 1e-16) for r in rows], "k-", lw=0.8)
-    ax2.set_ylabel("balance error")
+    ax2.set_ylabel("relative\nbalance error")
+    ax2.set_title("|W + E0 - (U + K + D + Dc)| / (W + E0)", fontsize=8)
     ax2.set_xlabel("time [s]")
     ax2.grid(alpha=0.3)
     save(fig, os.path.join(d, "energy.png"))
@@ -247,25 +248,34 @@ def fields_png(d, case):
     ext = [n[i] * L for i in range(3)]
     a, b = sorted(sorted(range(3), key=lambda i: -ext[i])[:2])
     fig, axes = plt.subplots(len(props), 2, figsize=(10, 3.6 * len(props)), squeeze=False)
-    units = {"E": "Pa", "Gf": "N/m", "e_p": "", "e_r": "(normal and diagonal bars)"}
+    from matplotlib.ticker import MaxNLocator
+    units = {"E": " [Pa]", "Gf": " [N/m]", "e_p": "", "e_r": " (normal and diagonal bars)"}
+    bins = 60
     for row_axes, p in zip(axes, props):
         vals = [float(r[p]) for r in rows]
         h = row_axes[0]
-        h.hist(vals, bins=60, density=True, color="0.6", label="bars")
+        # The share of the bars in each bin (they add up to 1), and the target's share per bin.
+        h.hist(vals, bins=bins, weights=[1.0 / len(vals)] * len(vals), color="0.6", label="bars")
         spec = case.get("fields", {}).get(p)
         if spec and spec.get("kind") == "weibull":
             g, lam = spec["shape"], spec["scale"]
             lo, hi = min(vals), max(vals)
+            width = (hi - lo) / bins
             xs = [lo + (hi - lo) * i / 200 for i in range(201)]
-            ys = [g / lam * (x / lam) ** (g - 1) * math.exp(-((x / lam) ** g)) for x in xs]
+            ys = [width * g / lam * (x / lam) ** (g - 1) * math.exp(-((x / lam) ** g)) for x in xs]
             h.plot(xs, ys, "r-", lw=1.2, label=f"Weibull target (shape {g:.3g})")
             h.legend(fontsize=8)
-        h.set_xlabel(f"{p} {units[p]}")
-        h.set_ylabel("density")
+        h.set_xlabel(f"{p}{units[p]}")
+        h.set_ylabel("share of the bars per bin")
+        # A few ticks, in scientific notation for small strains, so that the labels never meet.
+        h.xaxis.set_major_locator(MaxNLocator(5))
+        h.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
         m = row_axes[1]
         sc = m.scatter([float(r["xyz"[a]]) * 1e3 for r in rows],
                        [float(r["xyz"[b]]) * 1e3 for r in rows], c=vals, s=2, lw=0, cmap="viridis")
-        fig.colorbar(sc, ax=m, label=p)
+        bar = fig.colorbar(sc, ax=m, label=p)
+        bar.formatter.set_powerlimits((-3, 4))
+        bar.update_ticks()
         m.set_aspect("equal")
         m.set_xlabel(f"{'xyz'[a]} [mm]")
         m.set_ylabel(f"{'xyz'[b]} [mm]")
