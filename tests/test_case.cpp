@@ -276,7 +276,9 @@ function = [{ type = "exp_rise", tau = 1e-5 }]
 
 #include "app/case_run.hpp"
 
+#include <cmath>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 
 namespace ldem {
@@ -341,6 +343,62 @@ dofs = "x"
 value = [0.01, 0, 0]
 )"),
             "");
+}
+
+} // namespace
+} // namespace ldem
+
+namespace ldem {
+namespace {
+
+// A step above the proven stable bound (Gershgorin) but below the Lanczos estimate is run, with
+// a warning that says by how much it exceeds the bound and what step is stable for certain; a
+// step below the bound has none. The bound lies below the estimate (it bounds the largest
+// eigenfrequency from above).
+TEST(CaseFile, TimeStepAboveTheProvenBoundIsWarned) {
+  const std::string path = ::testing::TempDir() + "ldem_step_case.toml";
+  std::ofstream(path) << kGood;
+  const BuiltCase c = build_case(path);
+  const BodyNumbers b = body_numbers(*c.sim);
+  ASSERT_LT(b.stable.dt_bound, b.stable.dt);
+  const double dt = std::sqrt(b.stable.dt_bound * b.stable.dt); // between the two
+  std::ofstream(path) << edit("end = 1e-4", fmt::format("end = 1e-4\nrule = \"dt\"\ndt = {:.17g}", dt));
+  const BuiltCase above = build_case(path);
+  const BodyNumbers n = body_numbers(*above.sim);
+  ASSERT_EQ(n.dt, dt);
+  const std::optional<std::string> w = time_step_warning(n);
+  ASSERT_TRUE(w.has_value());
+  EXPECT_NE(w->find(fmt::format("is {:.0f} % above {:.4g} s", 100.0 * (dt / n.stable.dt_bound - 1.0),
+                                n.stable.dt_bound)),
+            std::string::npos)
+      << *w;
+  EXPECT_NE(resolved_case_toml(above, n).find("warnings = ["), std::string::npos);
+  std::ofstream(path) << edit("end = 1e-4",
+                              fmt::format("end = 1e-4\nsafety = {:.6f}", 0.99 * b.stable.dt_bound /
+                                                                             b.stable.dt));
+  const BuiltCase below = build_case(path);
+  EXPECT_FALSE(time_step_warning(body_numbers(*below.sim)).has_value());
+}
+
+} // namespace
+} // namespace ldem
+
+namespace ldem {
+namespace {
+
+// The paper's step rule takes the fastest bar wave speed, sqrt(E / rho) at the largest E and the
+// smallest density. A density graded from 1200 to 2400 kg/m^3 across the 4 modules of the good
+// case's height, taken at module centres, is 1350 kg/m^3 at its lightest (1200 + 1200 / 8), so
+// dt = 0.5 L / sqrt(30e9 / 1350); with the mean density, 1800, the step would be sqrt(4/3) =
+// 1.15 times longer than the wave speed of the light modules allows.
+TEST(CaseFile, PaperStepRuleTakesTheFastestWaveSpeed) {
+  const std::string path = ::testing::TempDir() + "ldem_paper_rule_case.toml";
+  std::string text = edit("rho = 2400", "rho = { type = \"linear\", axis = \"z\", values = "
+                                        "[1200.0, 2400.0] }");
+  text.replace(text.find("end = 1e-4"), 10, "end = 1e-4\nrule = \"paper\"\ncourant = 0.5");
+  std::ofstream(path) << text;
+  const BuiltCase c = build_case(path);
+  EXPECT_NEAR(c.sim->dt(), 0.5 * 0.01 / std::sqrt(30e9 / 1350.0), 1e-12 * c.sim->dt());
 }
 
 } // namespace

@@ -276,6 +276,7 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
   mat.insert("Gf_range", toml::array{mr.Gf[0], mr.Gf[1]});
   mat.insert("e_p_range", toml::array{mr.e_p[0], mr.e_p[1]});
   mat.insert("e_r_normal_range", toml::array{mr.e_r_normal[0], mr.e_r_normal[1]});
+  mat.insert("rho_range", toml::array{mr.rho[0], mr.rho[1]});
   root.insert("material", mat);
   toml::array sets;
   for (std::size_t i = 0; i < s.node_sets.size(); ++i) {
@@ -411,8 +412,8 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     root.insert("analysis", an);
   }
   const DuctilitySummary& k = body.ductility;
-  // c of the stiffest bars, as the paper's step rule takes it.
-  const double c_bar = std::sqrt(body.ranges.E[1] / s.material.rho);
+  // The fastest bar wave speed, as the paper's step rule takes it.
+  const double c_bar = std::sqrt(body.ranges.E[1] / body.ranges.rho[0]);
   root.insert("resolved",
               toml::table{{"nodes", static_cast<std::int64_t>(lat.num_nodes())},
                           {"bars", static_cast<std::int64_t>(lat.num_bars())},
@@ -422,15 +423,35 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
                           {"dt_stable", body.stable.dt},
                           {"dt_stable_over_L_c", body.stable.dt * c_bar / s.L},
                           {"dt_proven_bound", body.stable.dt_bound},
+                          {"dt_over_proven_bound", body.dt / body.stable.dt_bound},
                           {"K_r_normal_min", k.kr_min_normal},
                           {"K_r_normal_max", k.kr_max_normal},
                           {"K_r_diagonal_min", k.kr_min_diag},
                           {"K_r_diagonal_max", k.kr_max_diag},
                           {"L_cr", k.L_cr_min},
                           {"precracked_bars", static_cast<std::int64_t>(c.precracked.size())}});
+  toml::array warnings;
+  for (const std::string& w : c.warnings)
+    warnings.push_back(w);
+  if (const auto w = time_step_warning(body))
+    warnings.push_back(*w);
+  if (!warnings.empty())
+    root["resolved"].as_table()->insert("warnings", warnings);
   std::ostringstream os;
   os << "# The case as run: every default and derived value ([resolved]).\n" << root << "\n";
   return os.str();
+}
+
+std::optional<std::string> time_step_warning(const BodyNumbers& b) {
+  if (!(b.dt > b.stable.dt_bound))
+    return std::nullopt;
+  return fmt::format(
+      "time step: dt = {:.4g} s is {:.0f} % above {:.4g} s, the step proven stable (Gershgorin's "
+      "bound on the largest eigenfrequency); it is stable by the Lanczos estimate of the stable "
+      "step, {:.4g} s, which the run relies on. For a step stable for certain, take dt <= {:.4g} s "
+      "(rule = \"safety\" with safety <= {:.3f})",
+      b.dt, 100.0 * (b.dt / b.stable.dt_bound - 1.0), b.stable.dt_bound, b.stable.dt,
+      b.stable.dt_bound, b.stable.dt_bound / b.stable.dt);
 }
 
 } // namespace ldem

@@ -83,6 +83,10 @@ struct BodyNumbers {
 };
 BodyNumbers body_numbers(const Simulation& sim);
 
+// The warning a step above the proven stable bound (StableStep::dt_bound) deserves, with how
+// far above it is, or none.
+std::optional<std::string> time_step_warning(const BodyNumbers& n);
+
 // The resolved case (every default and derived value), as TOML.
 std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& n);
 

@@ -33,6 +33,8 @@ int check_command(const std::string& path) {
   const BuiltCase c = build_case(path);
   for (const std::string& w : c.warnings)
     fmt::print(stderr, "ldem: warning: {}\n", w);
+  if (const auto w = time_step_warning(body_numbers(*c.sim)))
+    fmt::print(stderr, "ldem: warning: {}\n", *w);
   fmt::print("{}", resolved_case_toml(c, body_numbers(*c.sim)));
   fmt::print(stderr, "{}: valid ({} nodes, {} bars, dt = {:.4g} s of a stable {:.4g} s)\n", path,
              c.sim->lattice().num_nodes(), c.sim->lattice().num_bars(), c.sim->dt(),
@@ -240,6 +242,8 @@ int run_command(const std::string& path, const RunOptions& o) {
   if (writes) {
     for (const std::string& w : c.warnings)
       fmt::print(stderr, "ldem: warning: {}\n", w);
+    if (const auto w = time_step_warning(body->numbers()))
+      fmt::print(stderr, "ldem: warning: {}\n", *w);
     std::error_code ec;
     for (const auto& e : fs::directory_iterator(o.out_dir)) // --force: old snapshots go
       if (e.path().extension() == ".vtu" && e.path().filename().string().rfind("lattice_", 0) == 0)

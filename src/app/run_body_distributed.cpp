@@ -157,7 +157,7 @@ void DistributedBody::agree_on_body() {
     combine_numbers(whole);
     stable_ = distributed_stable_step(*run_, whole);
     dt_ = time_step_by_rule(c.options.step, stable_, numbers_.ranges.E[1],
-                            run_->sim().table().spec().rho, whole.L());
+                            numbers_.ranges.rho[0], whole.L());
   } catch (const InputError& e) {
     throw InputError(fmt::format("{}: {}", c.path, e.what()));
   }
@@ -182,7 +182,7 @@ void DistributedBody::combine_numbers(const Lattice& whole) {
   // smallest, largest of the largest, counts added; the worst bar the body's first with the
   // smallest K_r.
   MaterialRanges& r = numbers_.ranges;
-  for (double* range : {r.E, r.Gf, r.e_p, r.e_r_normal}) {
+  for (double* range : {r.E, r.Gf, r.e_p, r.e_r_normal, r.rho}) {
     range[0] = min_over_processes(range[0]);
     range[1] = ldem::max_over_processes(range[1]);
   }

@@ -92,7 +92,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"precrack", "nudge", "bool", "false", "", -kInf, kInf, false, false, "", "Move a rectangle lying on a plane of nodes by L/4 along its normal instead of refusing it."},
 
     {"time", "end", "float", "required", "s", 0, kInf, true, false, "", "Simulated time."},
-    {"time", "rule", "string", "\"safety\"", "", -kInf, kInf, false, false, "\"safety\", \"dt\", \"paper\"", "Time step: a fraction of the stable step, a given dt, or the paper's courant L / c with c = sqrt(E / rho) of the stiffest bars (0.6 L / c in the paper); a step above the stable limit is refused."},
+    {"time", "rule", "string", "\"safety\"", "", -kInf, kInf, false, false, "\"safety\", \"dt\", \"paper\"", "Time step: a fraction of the stable step, a given dt, or the paper's courant L / c with c = sqrt(E / rho) the fastest bar wave speed, at the largest E and the smallest density of the body (0.6 L / c in the paper); a step above the stable limit is refused."},
     {"time", "courant", "float", "0.6", "", 0, 1, true, false, "", "Courant number of rule = \"paper\" (dt = courant L / c)."},
     {"time", "safety", "float", "0.9", "", 0, 1, true, false, "", "Fraction of the stable step (rule = \"safety\")."},
     {"time", "dt", "float", "-", "s", 0, kInf, true, false, "", "Time step (rule = \"dt\")."},

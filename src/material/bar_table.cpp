@@ -100,9 +100,14 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
     r[0] = std::min(r[0], v);
     r[1] = std::max(r[1], v);
   };
-  for (double* r : {ranges_.E, ranges_.Gf, ranges_.e_p, ranges_.e_r_normal}) {
+  for (double* r : {ranges_.E, ranges_.Gf, ranges_.e_p, ranges_.e_r_normal, ranges_.rho}) {
     r[0] = INFINITY;
     r[1] = -INFINITY;
+  }
+  widen(ranges_.rho, spec.rho);
+  if (!rho_.empty()) {
+    ranges_.rho[0] = *std::min_element(rho_.begin(), rho_.end());
+    ranges_.rho[1] = *std::max_element(rho_.begin(), rho_.end());
   }
   DuctilitySummary& s = summary_;
   bool any_below = false; // some bar of the table has K_r < 1, counted or not

@@ -50,6 +50,7 @@ struct BarFields {
 // The per-bar ranges that result, for the resolved case file.
 struct MaterialRanges {
   double E[2], Gf[2], e_p[2], e_r_normal[2];
+  double rho[2]; // of the modules
   std::string rule;
 };
 

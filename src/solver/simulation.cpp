@@ -45,11 +45,11 @@ std::vector<double> lumped_masses(const Lattice& lat, double rho,
 
 } // namespace
 
-double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max, double rho,
-                         double L) {
-  // The bar wave speed of the stiffest material in the body: with a graded or random E the
-  // paper's rule is taken at the largest E, where the stable step is smallest.
-  const double c = std::sqrt(E_max / rho);
+double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max,
+                         double rho_min, double L) {
+  // The fastest bar wave speed of the body: with a graded or random E or density the paper's
+  // rule is taken at the largest E and the smallest density, where the stable step is smallest.
+  const double c = std::sqrt(E_max / rho_min);
   double dt = 0.0;
   switch (step.rule) {
   case TimeStep::Rule::Safety:
@@ -115,7 +115,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   const std::vector<DofMask> held = build_boundary(c);
   if (!c.opt.defer_time_step) {
     c.stable = compute_stable_step(c.lat, c.table, mass, held);
-    c.dt = time_step_by_rule(c.opt.step, c.stable, c.table.ranges().E[1], c.table.spec().rho,
+    c.dt = time_step_by_rule(c.opt.step, c.stable, c.table.ranges().E[1], c.table.ranges().rho[0],
                              c.lat.L());
   }
   law_->init_states(c, precracked);

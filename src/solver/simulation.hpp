@@ -95,10 +95,10 @@ struct SolverOptions {
 };
 
 // dt by the rule of `step`: a fraction of the stable step, given, or the paper's Courant
-// number at the bar wave speed of the stiffest material, sqrt(E_max / rho). Throws InputError
+// number at the fastest bar wave speed of the body, sqrt(E_max / rho_min). Throws InputError
 // for a rule's bad value or a dt that is not positive or above the stable limit.
-double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max, double rho,
-                         double L);
+double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max,
+                         double rho_min, double L);
 
 struct Event {
   index_t bar;
