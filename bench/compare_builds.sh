@@ -7,9 +7,9 @@
 #
 # usage: bench/compare_builds.sh OLD_LDEM NEW_LDEM [ROUNDS=7] [LATTICE:STEPS ...]
 #   default lattices: 64x64x64:600 60x60x1:6000 100x1x41:6000, each on 1 and 2 threads
-#   (THREADS="1 2"); then the homogeneous FGM plate without output (PLATE=0 skips it): the
-#   shipped case with its crack analysis and plots off, energy rows every 100000 steps and no
-#   snapshots, on 2 threads, its rate from summary.json.
+#   (THREADS="1 2"); then each case of PLATES (default the homogeneous FGM plate; PLATES=""
+#   skips them) without output: the case with its crack analysis and plots off, energy rows
+#   every 100000 steps and no snapshots, on 2 threads, its rate from summary.json.
 set -euo pipefail
 OLD=${1:?old ldem}
 NEW=${2:?new ldem}
@@ -18,14 +18,16 @@ shift 3 || shift $#
 CASES=("$@")
 [ ${#CASES[@]} -gt 0 ] || CASES=(64x64x64:600 60x60x1:6000 100x1x41:6000)
 THREADS=${THREADS:-"1 2"}
-PLATE=${PLATE:-1}
+PLATES=${PLATES-cases/fgm_plate/homogeneous.toml}
 SRC=$(cd "$(dirname "$0")/.." && pwd)
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 OUT=$WORK/runs.txt
 rate() { sed -n 's/.*bar_updates_per_s=\([^ ]*\).*/\1/p'; }
-sed -e 's/^crack = true/crack = false/' "$SRC/cases/fgm_plate/homogeneous.toml" >"$WORK/plate.toml"
-printf '\n[output]\nenergy_every = 100000\nvtu = false\nplots = false\n' >>"$WORK/plate.toml"
+for p in $PLATES; do
+  sed -e 's/^crack = true/crack = false/' "$SRC/$p" >"$WORK/$(basename "$p")"
+  printf '\n[output]\nenergy_every = 100000\nvtu = false\nplots = false\n' >>"$WORK/$(basename "$p")"
+done
 for round in $(seq "$ROUNDS"); do
   for c in "${CASES[@]}"; do
     IFS=: read -r dims steps <<<"$c"
@@ -39,17 +41,18 @@ for round in $(seq "$ROUNDS"); do
       done
     done
   done
-  if [ "$PLATE" = 1 ]; then
+  for p in $PLATES; do
+    name=$(basename "$p" .toml)
     for which in old new; do
       bin=$OLD
       [ "$which" = new ] && bin=$NEW
       rm -rf "$WORK/plate"
-      "$bin" run "$WORK/plate.toml" --out "$WORK/plate" --threads 2 --no-plot >/dev/null 2>&1
+      "$bin" run "$WORK/$name.toml" --out "$WORK/plate" --threads 2 --no-plot >/dev/null 2>&1
       r=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["bar_updates_per_s"])' \
         "$WORK/plate/summary.json")
-      echo "$round fgm_plate_t2 $which $r" | tee -a "$OUT"
+      echo "$round ${name}_t2 $which $r" | tee -a "$OUT"
     done
-  fi
+  done
 done
 python3 - "$OUT" <<'PY'
 import statistics, sys

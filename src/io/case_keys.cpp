@@ -122,7 +122,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"probe", "name", "string", "required", "", -kInf, kInf, false, false, "", "Column name in probes.csv."},
     {"probe", "kind", "string", "required", "", -kInf, kInf, false, false, "\"bar_force\", \"reaction\", \"load\"", "What to record."},
     {"probe", "at", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "bar_force: axial force [N] of the bar whose centre is nearest to this point."},
-    {"probe", "set", "string", "-", "", -kInf, kInf, false, false, "", "reaction: sum over the set's nodes of the force the supports apply [N]."},
+    {"probe", "set", "string", "-", "", -kInf, kInf, false, false, "", "reaction: the static support force on the set [N]: minus the sum of the bar forces and loads on its nodes, the whole support force on held DOF; on imposed-velocity DOF without the driven nodes' inertia and damping (docs/model.md, 6)."},
     {"probe", "component", "string", "\"z\"", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "reaction: component."},
     {"probe", "load", "string", "-", "", -kInf, kInf, false, false, "", "load: name of the load whose total force [N] (component along its direction) is recorded."},
   };
