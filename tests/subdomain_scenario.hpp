@@ -33,8 +33,9 @@ struct SubdomainScenario {
   }
 
   // With `loaded`, the body is also held and driven: its bottom face fixed, its top face
-  // pulled up at a velocity that ramps in, a constant force on every node of face x+, and
-  // mass-proportional damping.
+  // pulled up at a velocity that ramps in, a constant traction on face x+ (each node weighted
+  // by its area, so that the subdomains take their nodes' weights), and mass-proportional
+  // damping.
   static Conditions conditions(const Lattice& whole, bool loaded) {
     Conditions c;
     if (!loaded)
@@ -42,7 +43,8 @@ struct SubdomainScenario {
     c.fixed.push_back({face(whole, Face::ZMin), kDofAll});
     c.velocities.push_back(
         {face(whole, Face::ZMax), kDofZ, {0, 0, 1e-4}, TimeFunction({LinearRamp{1.0, 20.0}})});
-    c.loads.push_back({face(whole, Face::XMax), {2e-5, 0, 0}, TimeFunction{}});
+    c.loads.push_back({face(whole, Face::XMax), {2e-5, 0, 0}, TimeFunction{},
+                       face_tributary_areas(whole, Face::XMax)});
     return c;
   }
   static SolverOptions options(bool loaded) {

@@ -403,3 +403,82 @@ TEST(CaseFile, PaperStepRuleTakesTheFastestWaveSpeed) {
 
 } // namespace
 } // namespace ldem
+
+#include "analysis/fatigue.hpp"
+
+namespace ldem {
+namespace {
+
+// A traction load [Pa] on a face weighs each node by the area it stands for. The good case's
+// top face, 4 x 1 modules of L = 0.01 m, has 5 x 2 corner nodes: the 4 at its corners stand
+// for L^2 / 4 each, the 6 others (all on its border, the plate being one module thick) for
+// L^2 / 2: 4 L^2 = 4e-4 m^2 in all, the face's area. A traction of 2 MPa there is a force of
+// 800 N, which is what a probe of the load records; the fatigue analysis takes the traction
+// itself as the remote stress. A force of 1000 N per node on the same 10 nodes is 10 kN over
+// the plate's section normal to z, 0.04 m x 0.01 m: 25 MPa.
+TEST(CaseFile, TractionLoadActsOnTheAreaOfItsFace) {
+  const std::string path = ::testing::TempDir() + "ldem_traction_case.toml";
+  const std::string load = R"(
+[[node_set]]
+name = "bottom"
+face = "z-"
+
+[[node_set]]
+name = "block"
+box_min = [0, 0, 0]
+box_max = [0.01, 0.01, 0.01]
+
+[[fixed]]
+set = "bottom"
+
+[[load]]
+name = "pull"
+set = "top"
+traction = [0, 0, 2e6]
+)";
+  std::ofstream(path) << edit("dofs = \"z\"", "dofs = \"x\"") + load;
+  const BuiltCase c = build_case(path);
+  double area = 0.0;
+  for (double a : c.conditions.loads[0].weight)
+    area += a;
+  EXPECT_NEAR(area, 4e-4, 1e-18);
+  EXPECT_NEAR(load_total_force(c, 0, 0.0), 800.0, 1e-10);
+  RunGeometry rg;
+  rg.case_file = path;
+  rg.extent = {0.04, 0.01, 0.04};
+  rg.resolved = toml::parse(resolved_case_toml(c, body_numbers(*c.sim)));
+  const toml::table& pull = *rg.resolved["load"][0].as_table();
+  EXPECT_NEAR(pull["area"].value_or(0.0), 4e-4, 1e-18);
+  EXPECT_DOUBLE_EQ(load_remote_stress(rg, pull), 2e6);
+
+  // A force per node: its total is the force times the nodes; its remote stress the total
+  // over the section.
+  const std::string traction_case = edit("dofs = \"z\"", "dofs = \"x\"") + load;
+  std::ofstream(path) << std::string(traction_case).replace(traction_case.find("traction = [0, 0, 2e6]"),
+                                                       22, "force = [0, 0, 1000]");
+  const BuiltCase f = build_case(path);
+  EXPECT_NEAR(load_total_force(f, 0, 0.0), 1e4, 1e-9);
+  rg.resolved = toml::parse(resolved_case_toml(f, body_numbers(*f.sim)));
+  EXPECT_NEAR(load_remote_stress(rg, *rg.resolved["load"][0].as_table()), 2.5e7, 1e-6);
+
+  // Refused: a traction on a set whose nodes' areas are not known, both force and traction,
+  // neither.
+  const std::string on_box = std::string(traction_case).replace(traction_case.find("set = \"top\"\ntraction"),
+                                                           11, "set = \"block\"");
+  std::string e = build_error_of(on_box);
+  EXPECT_NE(e.find("[[load]] \"pull\": traction: expected a node set given by face or "
+                   "face_centres, whose nodes' areas are known; got \"block\", box"),
+            std::string::npos)
+      << e;
+  e = build_error_of(edit("dofs = \"z\"", "dofs = \"x\"") + load + "force = [0, 0, 1]\n");
+  EXPECT_NE(e.find("load[0].traction"), std::string::npos) << e;
+  EXPECT_NE(e.find("expected force or traction, not both"), std::string::npos) << e;
+  e = build_error_of(std::string(traction_case).replace(traction_case.find("traction = [0, 0, 2e6]"), 22,
+                                                   ""));
+  EXPECT_NE(e.find("expected force (N on each node) or traction (Pa on a face)"),
+            std::string::npos)
+      << e;
+}
+
+} // namespace
+} // namespace ldem

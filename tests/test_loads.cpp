@@ -93,5 +93,88 @@ TEST(Loads, GrowingSineLoadKeepsTheBalance) {
   EXPECT_LT(worst, 1e-3);
 }
 
+// A face's corner nodes stand for a quarter of each module face around them: on the top face
+// of a 3 x 2 x 4 lattice (4 x 3 corner nodes), the 4 corners L^2 / 4, the 6 other border nodes
+// L^2 / 2, the 2 inside L^2; 6 L^2 in all, the face's area.
+TEST(Loads, FaceTributaryAreasAddUpToTheFace) {
+  const double L = 0.5;
+  const Lattice lat(3, 2, 4, L);
+  const std::vector<index_t> nodes = select_face(lat, Face::ZMax);
+  const std::vector<double> area = face_tributary_areas(lat, Face::ZMax);
+  ASSERT_EQ(area.size(), nodes.size());
+  double sum = 0.0;
+  for (std::size_t q = 0; q < nodes.size(); ++q) {
+    const Vec3 x = lat.position(nodes[q]);
+    const int border = (x.x == 0.0 || x.x == 3 * L) + (x.y == 0.0 || x.y == 2 * L);
+    EXPECT_DOUBLE_EQ(area[q], L * L / (border == 2 ? 4.0 : border == 1 ? 2.0 : 1.0)) << q;
+    sum += area[q];
+  }
+  EXPECT_DOUBLE_EQ(sum, 6 * L * L);
+}
+
+// A column of 3 x 2 x 6 modules in uniaxial strain (x and y held at every node), its bottom
+// corner nodes held in z, pulled by tractions. Under u_z = eps z every z bar (edges and
+// centre-centre, area phi L^2 inside) stretches by eps and every diagonal (area
+// 2 delta phi L^2 / sqrt(3)) by eps / 3; horizontal bars stay unstrained. Each module gives a
+// top corner node a quarter of an edge, phi E L^2 eps / 4, and one diagonal's z force,
+// 2 delta phi E L^2 eps / 9: the corner nodes' forces are their tributary areas times
+// t_c = phi E eps (1 + 8 delta / 9). A top module's centre node lacks the centre-centre bar
+// above it, phi E L^2 eps over its module face: t_m = phi E eps (the bottom ones the same,
+// downwards). At nu = 0.25 (delta = 9/8, phi = 0.4), t_c = 0.8 E eps, t_m = 0.4 E eps, and the
+// stress t_c + t_m = 1.2 E eps = E (1 - nu) / ((1 + nu)(1 - 2 nu)) eps, the constrained
+// modulus. With those tractions on the face and on face_centres the affine field is the
+// static solution, to the geometric nonlinearity, O(eps) = 1e-6 relative. The same corner
+// force shared equally among the top nodes (a force per node) puts 4 and 2 times their share
+// on the face's corners and borders: the top face no longer rises evenly.
+TEST(Loads, TractionsOnFaceAndCentresHoldTheAffineUniaxialStrain) {
+  const MaterialSpec m = unit_material(1.0, 4.0); // E = 1, e_p = 1: elastic
+  const index_t nx = 3, ny = 2, nz = 6;
+  const Lattice lat(nx, ny, nz, 1.0);
+  const double eps = 1e-6, t_c = 0.8 * eps, t_m = 0.4 * eps;
+  auto relaxed = [&](bool traction) {
+    Conditions c;
+    c.fixed.push_back({make_node_set("all", select_all(lat), "all"),
+                       static_cast<DofMask>(kDofX | kDofY)});
+    c.fixed.push_back({face(lat, Face::ZMin), kDofZ});
+    const NodeSet top = face(lat, Face::ZMax);
+    if (traction) {
+      c.loads.push_back({top, {0.0, 0.0, t_c}, TimeFunction(), face_tributary_areas(lat, Face::ZMax)});
+    } else {
+      // The same total force, t_c nx ny L^2, equally on each of the top face's nodes.
+      const double per_node = t_c * nx * ny / static_cast<double>(top.nodes.size());
+      c.loads.push_back({top, {0.0, 0.0, per_node}, TimeFunction()});
+    }
+    for (Face f : {Face::ZMin, Face::ZMax}) {
+      const std::vector<index_t> centres = select_face_module_centres(lat, f);
+      c.loads.push_back({make_node_set(face_name(f), centres, "centres"),
+                         {0.0, 0.0, f == Face::ZMax ? t_m : -t_m},
+                         TimeFunction(),
+                         std::vector<double>(centres.size(), 1.0)}); // L^2 = 1 each
+    }
+    SolverOptions o;
+    o.damping = 0.5; // near-critical for the lowest mode, omega_1 ~ (pi / 2) sqrt(1.2) / 6 = 0.29
+    Simulation sim = make_sim(nx, ny, nz, 1.0, m, c, o);
+    for (int s = 0; s < 6000; ++s)
+      sim.step();
+    return sim;
+  };
+  const Simulation sim = relaxed(true);
+  double worst = 0.0;
+  for (index_t v = 0; v < lat.num_nodes(); ++v) {
+    const double z = lat.position(v).z;
+    if (z > 0.0)
+      worst = std::max(worst, std::abs(sim.displacement(v).z / (eps * z) - 1.0));
+  }
+  EXPECT_LT(worst, 1e-5);
+  // A force per node: the top corner nodes' rise spreads by more than a tenth of eps nz.
+  const Simulation equal = relaxed(false);
+  double lo = 1e300, hi = -1e300;
+  for (index_t v : select_face(lat, Face::ZMax)) {
+    lo = std::min(lo, equal.displacement(v).z);
+    hi = std::max(hi, equal.displacement(v).z);
+  }
+  EXPECT_GT((hi - lo) / (eps * nz), 0.1);
+}
+
 } // namespace
 } // namespace ldem

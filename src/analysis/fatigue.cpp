@@ -255,9 +255,45 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
 
 namespace ldem {
 
+// A traction is the remote stress itself; a force per node is spread over the section.
+double load_remote_stress(const RunGeometry& rg, const toml::table& load) {
+  const toml::table& c = rg.resolved;
+  const std::string& file = rg.case_file;
+  const std::string name = load["name"].value_or(std::string());
+  const std::string set = load["set"].value_or(std::string());
+  const bool traction = load.contains("traction");
+  std::array<double, 3> force{};
+  for (std::size_t k = 0; k < 3; ++k)
+    force[k] = resolved_number(load[traction ? "traction" : "force"][k], file,
+                               traction ? "load.traction" : "load.force");
+  const double magnitude =
+      std::sqrt(force[0] * force[0] + force[1] * force[1] + force[2] * force[2]);
+  double sigma_unit = magnitude;
+  if (!traction) {
+    double nodes = 0.0;
+    if (const auto* sets = c["node_set"].as_array())
+      for (const toml::node& n : *sets)
+        if (const toml::table* s = n.as_table(); s && (*s)["name"].value_or(std::string()) == set)
+          nodes = (*s)["nodes_selected"].value_or(0.0);
+    if (!(nodes > 0.0))
+      throw InputError(fmt::format("{}: load \"{}\": its set \"{}\" has no nodes_selected", file,
+                                   name, set));
+    const auto axis = static_cast<std::size_t>(
+        std::max_element(force.begin(), force.end(),
+                         [](double p, double q) { return std::abs(p) < std::abs(q); }) -
+        force.begin());
+    double section = 1.0;
+    for (std::size_t k = 0; k < 3; ++k)
+      if (k != axis)
+        section *= rg.extent[k];
+    sigma_unit = magnitude * nodes / section;
+  }
+  return sigma_unit;
+}
+
 namespace {
 
-// The remote stress of a load: its total force over the body's section normal to the force.
+// The remote stress of a load (load_remote_stress) over time.
 CyclicLoad read_cyclic_load(const RunGeometry& rg, const std::string& wanted, double t_end) {
   const toml::table& c = rg.resolved;
   const std::string& file = rg.case_file;
@@ -298,29 +334,7 @@ CyclicLoad read_cyclic_load(const RunGeometry& rg, const std::string& wanted, do
     throw InputError(fmt::format("{}: analysis.fatigue_load: the load \"{}\" has no "
                                  "\"growing_sine\" term, so it has no cycles to count",
                                  file, name));
-  const std::string set = (*chosen)["set"].value_or(std::string());
-  double nodes = 0.0;
-  if (const auto* sets = c["node_set"].as_array())
-    for (const toml::node& n : *sets)
-      if (const toml::table* s = n.as_table(); s && (*s)["name"].value_or(std::string()) == set)
-        nodes = (*s)["nodes_selected"].value_or(0.0);
-  if (!(nodes > 0.0))
-    throw InputError(fmt::format("{}: load \"{}\": its set \"{}\" has no nodes_selected", file,
-                                 name, set));
-  std::array<double, 3> force{};
-  for (std::size_t k = 0; k < 3; ++k)
-    force[k] = resolved_number((*chosen)["force"][k], file, "load.force");
-  const auto axis = static_cast<std::size_t>(
-      std::max_element(force.begin(), force.end(),
-                       [](double p, double q) { return std::abs(p) < std::abs(q); }) -
-      force.begin());
-  double section = 1.0;
-  for (std::size_t k = 0; k < 3; ++k)
-    if (k != axis)
-      section *= rg.extent[k];
-  const double sigma_unit = std::sqrt(force[0] * force[0] + force[1] * force[1] +
-                                      force[2] * force[2]) *
-                            nodes / section;
+  const double sigma_unit = load_remote_stress(rg, *chosen);
 
   std::vector<TimeTerm> terms;
   for (const toml::node& term : *(*chosen)["function"].as_array()) {

@@ -4,6 +4,8 @@
 // plate and Paris' law fitted in log-log (docs/model.md, "Fatigue analysis").
 #pragma once
 
+#include "analysis/run_data.hpp"
+
 #include <cstddef>
 #include <optional>
 #include <string>
@@ -62,6 +64,10 @@ double front_at(const std::vector<FrontStep>& front, double tip, double t);
 
 // The loading of the fatigue analysis: the remote stress sigma(t) of one load and the start
 // and frequency of its cycles.
+// The remote stress [Pa] of a resolved [[load]] of the run at time factor 1: its traction, or
+// its total force (force per node times nodes) over the body's section normal to the force.
+double load_remote_stress(const RunGeometry& rg, const toml::table& load);
+
 struct CyclicLoad {
   double frequency = 0.0;       // Hz
   double t_cycles = 0.0;        // when the oscillation starts [s]

@@ -44,6 +44,40 @@ std::string how(const NodeSetSpec& s) {
   return "all nodes";
 }
 
+// A traction load's nodes weighted by the area each stands for (docs/model.md, 6); none for a
+// force per node.
+std::vector<double> traction_weights(const CaseSpec& s, const LoadSpec& l, const Lattice& lat) {
+  if (!l.traction)
+    return {};
+  const auto spec = std::find_if(s.node_sets.begin(), s.node_sets.end(),
+                                 [&](const NodeSetSpec& n) { return n.name == l.set; });
+  if (spec != s.node_sets.end() && spec->kind == NodeSetSpec::Kind::Face)
+    return face_tributary_areas(lat, spec->face);
+  if (spec != s.node_sets.end() && spec->kind == NodeSetSpec::Kind::FaceCentres)
+    return std::vector<double>(select_face_module_centres(lat, spec->face).size(),
+                               lat.L() * lat.L());
+  throw InputError(fmt::format("[[load]] \"{}\": traction: expected a node set given by face or "
+                               "face_centres, whose nodes' areas are known; got \"{}\", {}",
+                               l.name, l.set,
+                               spec == s.node_sets.end() ? "not a node set" : how(*spec)));
+}
+
+} // namespace
+
+double load_total_force(const BuiltCase& c, std::size_t i, double t) {
+  // The whole body's load (c.conditions, not a subdomain's), its nodes' weights added.
+  const LoadSpec& l = c.spec.loads[i];
+  const NodalLoad& whole = c.conditions.loads[i];
+  double weight = 0.0;
+  for (std::size_t q = 0; q < whole.set.nodes.size(); ++q)
+    weight += whole.weight_of(q);
+  return l.scale(t) * std::sqrt(l.force.x * l.force.x + l.force.y * l.force.y +
+                                l.force.z * l.force.z) *
+         weight;
+}
+
+namespace {
+
 std::string dofs_text(DofMask m) {
   std::string s;
   for (int d = 0; d < 3; ++d)
@@ -149,7 +183,8 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     for (const VelocitySpec& v : s.velocities)
       cond.velocities.push_back({set_named(c.sets, v.set), v.dofs, v.value, v.scale});
     for (const LoadSpec& l : s.loads)
-      cond.loads.push_back({set_named(c.sets, l.set), l.force, l.scale});
+      cond.loads.push_back(
+          {set_named(c.sets, l.set), l.force, l.scale, traction_weights(s, l, lat)});
     check_conditions_agree(s, c.sets, lat);
     for (const ProbeSpec& p : s.probes) {
       index_t best = 0;
@@ -332,11 +367,19 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
                               {"dofs", dofs_text(v.dofs)},
                               {"value", vec(v.value)},
                               {"function", function(v.scale)}});
-  for (const LoadSpec& l : s.loads)
-    loads.push_back(toml::table{{"name", l.name},
-                                {"set", l.set},
-                                {"force", vec(l.force)},
-                                {"function", function(l.scale)}});
+  for (std::size_t i = 0; i < s.loads.size(); ++i) {
+    const LoadSpec& l = s.loads[i];
+    toml::table t{{"name", l.name}, {"set", l.set}, {l.traction ? "traction" : "force", vec(l.force)},
+                  {"function", function(l.scale)}};
+    if (l.traction) {
+      // The area the traction acts on, its nodes' areas added.
+      double area = 0.0;
+      for (double a : c.conditions.loads[i].weight)
+        area += a;
+      t.insert("area", area);
+    }
+    loads.push_back(std::move(t));
+  }
   for (std::size_t i = 0; i < s.precracks.size(); ++i) {
     const PrecrackSpec& p = s.precracks[i];
     cracks.push_back(toml::table{{"name", p.rect.name},

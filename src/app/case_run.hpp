@@ -39,6 +39,10 @@ const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& na
 // Throws InputError unless the case's time.end holds at least one step of dt.
 void check_end_time(const BuiltCase& c, double dt);
 
+// The size of the whole force of load `i` of the case at time t [N]: its force per node times
+// the node count, or its traction times the area of its face.
+double load_total_force(const BuiltCase& c, std::size_t i, double t);
+
 // Builds everything a run needs; bad input throws InputError naming the case file. `adjust`,
 // if given, changes the case after it is read (ensemble perturbations). Without
 // `with_simulation`, sim stays empty (the processes of a distributed run other than the first

@@ -51,11 +51,9 @@ std::vector<Event> RunBody::take_kept_events() {
 }
 
 double RunBody::load_probe(const ProbeSpec& p, double t) const {
-  for (const LoadSpec& l : c_.spec.loads)
-    if (l.name == p.load)
-      return l.scale(t) *
-             std::sqrt(l.force.x * l.force.x + l.force.y * l.force.y + l.force.z * l.force.z) *
-             static_cast<double>(set_named(c_.sets, l.set).nodes.size());
+  for (std::size_t i = 0; i < c_.spec.loads.size(); ++i)
+    if (c_.spec.loads[i].name == p.load)
+      return load_total_force(c_, i, t);
   return 0.0;
 }
 

@@ -74,7 +74,8 @@ const std::vector<KeyDecl>& case_keys() {
 
     {"load", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name (for probes)."},
     {"load", "set", "string", "required", "", -kInf, kInf, false, false, "", "Node set loaded."},
-    {"load", "force", "[3 floats]", "required", "N", -kInf, kInf, false, false, "", "Force on each node of the set, scaled by the time function."},
+    {"load", "force", "[3 floats]", "-", "N", -kInf, kInf, false, false, "", "Force on each node of the set, scaled by the time function. Give force or traction."},
+    {"load", "traction", "[3 floats]", "-", "Pa", -kInf, kInf, false, false, "", "Force per area on the face that the set covers (a set given by face or face_centres), scaled by the time function: each node takes the area it stands for (a face's corner nodes a quarter of each module face around them, centre nodes a whole module face). Give force or traction."},
 
     {"function", "type", "string", "required", "", -kInf, kInf, false, false, "\"constant\", \"ramp\", \"exp_rise\", \"growing_sine\"", "One term of the time function of a velocity or load (`function = [{...}, ...]`, summed); without `function` the factor is 1."},
     {"function", "value", "float", "1", "", -kInf, kInf, false, false, "", "constant: value; ramp: value * min(t / duration, 1); exp_rise: value * (1 - exp(-t / tau))."},

@@ -645,8 +645,14 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     const toml::table& t = *loads[i];
     const std::string w = fmt::format("load[{}].", i);
     r.check_known(t, "load", w);
+    const auto force = r.opt_vec3(t, "load", "force", w);
+    const auto traction = r.opt_vec3(t, "load", "traction", w);
+    if (force && traction)
+      r.fail(t.get("traction"), w + "traction", "expected force or traction, not both");
+    if (!force && !traction)
+      r.fail(&t, w + "force", "expected force (N on each node) or traction (Pa on a face)");
     c.loads.push_back({r.get_string(t, "load", "name", w), known_set(t, w),
-                       *r.opt_vec3(t, "load", "force", w), r.function(t, w)});
+                       force ? *force : *traction, r.function(t, w), traction.has_value()});
   }
   const auto cracks = array("precrack");
   for (std::size_t i = 0; i < cracks.size(); ++i) {

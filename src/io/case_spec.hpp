@@ -38,8 +38,9 @@ struct VelocitySpec {
 
 struct LoadSpec {
   std::string name, set;
-  Vec3 force;
+  Vec3 force; // N on every node; with `traction`, Pa on the face the set covers
   TimeFunction scale;
+  bool traction = false;
 };
 
 struct PrecrackSpec {

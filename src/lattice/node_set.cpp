@@ -44,6 +44,28 @@ std::vector<index_t> select_face(const Lattice& lat, Face face) {
   return out;
 }
 
+std::vector<double> face_tributary_areas(const Lattice& lat, Face face) {
+  const auto n = lat.modules();
+  const int ax = axis_of(face);
+  const double quarter = 0.25 * lat.L() * lat.L();
+  std::vector<double> out;
+  for (index_t k = 0; k <= n[2]; ++k)
+    for (index_t j = 0; j <= n[1]; ++j)
+      for (index_t i = 0; i <= n[0]; ++i) {
+        const index_t idx[3] = {i, j, k};
+        if (idx[ax] != (is_max(face) ? n[ax] : 0))
+          continue;
+        // A quarter of each module face around the node: modules_sharing_edge along the two
+        // axes of the face (1 on the face's border, 2 inside it).
+        double a = quarter;
+        for (int b = 0; b < 3; ++b)
+          if (b != ax)
+            a *= (idx[b] > 0) + (idx[b] < n[b]);
+        out.push_back(a);
+      }
+  return out;
+}
+
 std::vector<index_t> select_face_module_centres(const Lattice& lat, Face face) {
   const auto n = lat.modules();
   const int ax = axis_of(face);

@@ -21,6 +21,10 @@ struct NodeSet {
 
 // Corner nodes lying on a face of the box.
 std::vector<index_t> select_face(const Lattice& lattice, Face face);
+// The area of the face each node of select_face(lattice, face) stands for, in the same
+// order: a quarter of every module face around it (L^2 / 4 at the face's corners, L^2 / 2 on
+// its border, L^2 inside); they add up to the face's area.
+std::vector<double> face_tributary_areas(const Lattice& lattice, Face face);
 // Centre nodes of the layer of modules that touches a face ("centre nodes of the
 // modules on the top face"): loads applied there reach the body without the
 // boundary-edge scaling of the face's own bars.

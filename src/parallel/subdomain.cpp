@@ -210,14 +210,19 @@ index_t global_bar(const Subdomain& sub, const Lattice& local, const Lattice& wh
 
 Conditions subdomain_conditions(const Subdomain& sub, const Lattice& whole, const Lattice& local,
                                 const Conditions& c) {
+  // The set's nodes this subdomain owns, in local numbers (in the same order), and where each
+  // was in the whole set (`kept`, for per-node weights).
+  std::vector<std::size_t> kept;
   const auto restrict_set = [&](const NodeSet& set) {
     NodeSet out{set.name, {}};
-    for (index_t g : set.nodes) {
-      const NodeAddress a = whole.node_address(g);
+    kept.clear();
+    for (std::size_t q = 0; q < set.nodes.size(); ++q) {
+      const NodeAddress a = whole.node_address(set.nodes[q]);
       if (!sub.owns(a.j, a.k, !a.centre))
         continue;
       const index_t j = a.j - sub.y.w0, k = a.k - sub.z.w0;
       out.nodes.push_back(a.centre ? local.centre(a.i, j, k) : local.corner(a.i, j, k));
+      kept.push_back(q);
     }
     return out;
   };
@@ -230,8 +235,13 @@ Conditions subdomain_conditions(const Subdomain& sub, const Lattice& whole, cons
     if (NodeSet set = restrict_set(v.set); !set.nodes.empty())
       out.velocities.push_back({std::move(set), v.dofs, v.velocity, v.scale});
   for (const NodalLoad& l : c.loads)
-    if (NodeSet set = restrict_set(l.set); !set.nodes.empty())
-      out.loads.push_back({std::move(set), l.force, l.scale});
+    if (NodeSet set = restrict_set(l.set); !set.nodes.empty()) {
+      std::vector<double> weight;
+      if (!l.weight.empty())
+        for (std::size_t q : kept)
+          weight.push_back(l.weight[q]);
+      out.loads.push_back({std::move(set), l.force, l.scale, std::move(weight)});
+    }
   return out;
 }
 

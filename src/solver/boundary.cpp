@@ -99,10 +99,12 @@ void apply_loads(SimulationCore& core, double t) {
   for (std::size_t c = 0; c < core.cond.loads.size(); ++c) {
     const NodalLoad& load = core.cond.loads[c];
     const double s = load.scale(t);
-    for (std::size_t q : core.bc.load_slots[c]) {
-      core.px[q] += s * load.force.x;
-      core.py[q] += s * load.force.y;
-      core.pz[q] += s * load.force.z;
+    const std::vector<std::size_t>& slots = core.bc.load_slots[c];
+    for (std::size_t i = 0; i < slots.size(); ++i) {
+      const double w = s * load.weight_of(i);
+      core.px[slots[i]] += w * load.force.x;
+      core.py[slots[i]] += w * load.force.y;
+      core.pz[slots[i]] += w * load.force.z;
     }
   }
 }

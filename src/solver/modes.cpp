@@ -322,12 +322,14 @@ std::vector<Mode> lowest_modes(const Simulation& sim, int count) {
   // Load shares: g = M^-1/2 F, so that phi^T F = psi^T g and F^T K^-1 F = g^T A^-1 g.
   Eigen::VectorXd g = Eigen::VectorXd::Zero(n_free);
   for (const NodalLoad& load : sim.conditions().loads)
-    for (index_t node : load.set.nodes)
+    for (std::size_t q = 0; q < load.set.nodes.size(); ++q) {
+      const index_t node = load.set.nodes[q];
       for (int d = 0; d < 3; ++d) {
         const std::int64_t i = dof[3 * static_cast<std::size_t>(node) + d];
         if (i >= 0)
-          g[i] += load.force[d] / std::sqrt(sim.mass(node));
+          g[i] += load.weight_of(q) * load.force[d] / std::sqrt(sim.mass(node));
       }
+    }
   // Defined if the zero-energy modes found are all there are (an elastic one is found too).
   const double g2 = g.squaredNorm();
   if (g2 > 0.0 && n_zero < nev) {

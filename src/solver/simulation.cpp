@@ -586,6 +586,8 @@ double Simulation::bytes_per_module() const {
   total += bytes(c.bc.imposed_row) + bytes(c.bc.imposed_force);
   for (const auto& q : c.bc.load_slots)
     total += bytes(q);
+  for (const NodalLoad& load : c.cond.loads)
+    total += bytes(load.weight);
   total += bytes(l.link_ref) + bytes(l.row_kind) + bytes(l.link_const) + bytes(l.row_kinds) +
            bytes(c.row_held) + bytes(c.row_damaged) + bytes(l.node_rows) + bytes(l.bar_rows) +
            bytes(c.row_fast) + bytes(c.line_fast) + bytes(c.row_ratio) + bytes(l.row_inv_lp) +

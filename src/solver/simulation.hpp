@@ -50,11 +50,14 @@ struct ImposedVelocity {
   TimeFunction scale;
 };
 
-// A force `force * scale(t)` [N] on every node of the set.
+// F = force * weight[i] * scale(t) on node set.nodes[i]; no weights: 1 on every node (a
+// traction load weighs each node by its tributary area, the force being the traction).
 struct NodalLoad {
   NodeSet set;
   Vec3 force;
   TimeFunction scale;
+  std::vector<double> weight{};
+  double weight_of(std::size_t i) const { return weight.empty() ? 1.0 : weight[i]; }
 };
 
 struct Conditions {
