@@ -137,7 +137,7 @@ if "$LDEM" run "$T/weibull.toml" --out "$T/weibull" >/dev/null 2>"$T/stderr" && 
 # folder is an error naming the file.
 FGM="$SRC/cases/fgm_plate/homogeneous.toml"
 if "$LDEM" run "$FGM" --out "$T/fgm" >/dev/null 2>"$T/stderr" &&
-  [ "$(head -1 "$T/fgm/crack_tip.csv")" = "time,tip_x,tip_z,speed" ] && [ -s "$T/fgm/crack_speed.png" ] &&
+  [ "$(head -1 "$T/fgm/crack_tip.csv")" = "time,branch,tip_x,tip_z,length,speed,speed_se,softening_length,softened_ahead,flagged,jump" ] && [ -s "$T/fgm/crack_speed.png" ] &&
   grep -q '"branching_length_m"' "$T/fgm/summary.json" && grep -q '"secondary_branching"' "$T/fgm/summary.json" &&
   grep -q '"max_crack_speed_m_s"' "$T/fgm/summary.json" && grep -q '"branch_angles_deg"' "$T/fgm/summary.json" &&
   "$LDEM" analyze crack "$T/fgm" | grep -q "^crack: length"; then ok; else bad "crack analysis: $(cat "$T/stderr")"; fi

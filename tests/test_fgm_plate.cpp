@@ -74,11 +74,14 @@ TEST(FgmPlate, HomogeneousCrackStartsAtTheTipAndGrowsOneMillimetre) {
   // beyond the pre-crack).
   const auto& c = r.summary["analysis"]["crack"];
   EXPECT_GE(c["final_crack_length_m"].get<double>() - kTipX, 1e-3);
-  // Crack speeds stay physical: a mode-I crack cannot outrun the Rayleigh wave; the measured
-  // maximum may exceed it by the resolution of the speed estimate and by coalescence with
-  // bars broken ahead of the tip, so the bound is loose: 1.5 c_R.
+  // Crack speeds stay physical: a mode-I crack cannot outrun the Rayleigh wave (Freund,
+  // Dynamic Fracture Mechanics, 1990, sec. 5.3). The largest tip speed, fitted over 10 L of
+  // advance with jumps (the crack joining bars broken ahead of it) left out, lies below c_R
+  // to within two of its standard errors.
+  const double cR = c["rayleigh_speed_m_s"].get<double>();
   EXPECT_GT(c["max_crack_speed_m_s"].get<double>(), 0.0);
-  EXPECT_LT(c["max_crack_speed_over_rayleigh"].get<double>(), 1.5);
+  EXPECT_LT(c["max_crack_speed_m_s"].get<double>() - 2 * c["max_crack_speed_se_m_s"].get<double>(),
+            cR);
 }
 
 TEST(FgmPlate, BalanceErrorBelowOnePercentAtHalfThePapersStep) {

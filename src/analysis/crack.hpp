@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,13 +25,27 @@ struct CrackGeometry {
 struct CrackOptions {
   double min_branch_length = 0.0; // a branch must run this far beyond its bifurcation [m]
   double fit_length = 0.0;        // branch angles: a line fit over this length of a branch [m]
-  double speed_window = 0.0;      // crack speed: centred difference over +- this time [s]
+  // Bars broken more than this before the crack reaches them broke on their own; the tip is
+  // sampled every quarter of it [s].
+  double speed_window = 0.0;
+  double speed_fit_length = 0.0; // tip speed: a least-squares line over this much advance [m]
+  // Samples where the softened zone runs farther ahead of the tip than this are flagged [m].
+  double zone_flag_length = 0.0;
 };
 
+// The tip of one part of the crack at one time: the trunk (branch 0: the crack up to its first
+// bifurcation, or the whole crack if it does not branch) or branch k of the first bifurcation.
 struct TipSample {
-  double t, a, n;
-  double length; // pre-crack + the crack's extent along its path [m]
-  double speed;  // m/s
+  double t = 0.0;
+  int branch = 0;
+  double a = 0.0, n = 0.0;
+  double length = 0.0;   // pre-crack + that part's farthest extent along the crack [m]
+  double speed = 0.0;    // least-squares slope of the length over >= speed_fit_length [m/s]
+  double speed_se = 0.0; // its standard error (NaN with fewer than 3 samples) [m/s]
+  double softening_length = 0.0; // pre-crack + the softened zone's extent, whole crack [m]
+  double softened_ahead = 0.0;   // how far the softened zone runs ahead of the whole crack [m]
+  bool flagged = false;          // softened_ahead > zone_flag_length
+  bool jump = false; // the speed's window holds a step of > 2 L between samples (coalescence)
 };
 
 struct BranchInfo {
@@ -39,6 +54,8 @@ struct BranchInfo {
   double length = 0.0;    // extent along its path beyond its bifurcation [m]
   bool opens = false;     // reaches the body's border: with the rest of the crack it cuts the body
   double end_a = 0.0, end_n = 0.0; // its farthest point
+  double median_speed = 0.0;       // level 1: median tip speed while it grows [m/s]
+  double max_speed = 0.0;          // level 1: largest tip speed [m/s]
 };
 
 struct CrackAnalysis {
@@ -46,17 +63,28 @@ struct CrackAnalysis {
   double branch_a = 0.0, branch_n = 0.0;  // the bifurcation point [m]
   std::vector<BranchInfo> branches;       // the first bifurcation's, then secondary ones
   bool secondary_branching = false;
-  double max_speed = 0.0;   // m/s
-  double speed_before_branching = 0.0; // largest speed until the tip passes the bifurcation
+  // Speeds over windows without a jump (the crack joining bars broken ahead of it).
+  double max_speed = 0.0;    // largest tip speed of the trunk and the branches [m/s]
+  double max_speed_se = 0.0; // its standard error [m/s]
+  double max_unflagged_speed = 0.0; // the largest where the softened zone is short [m/s]
+  int jumps = 0;                    // steps of more than 2 L between two samples of a tip
+  double median_speed = 0.0;           // median tip speed while the crack grows [m/s]
+  double trunk_median_speed = 0.0;     // the same for the trunk alone [m/s]
+  // Largest trunk speed until its tip reaches the bifurcation (NaN: none measured) [m/s].
+  double speed_before_branching = std::numeric_limits<double>::quiet_NaN();
+  double flagged_time = 0.0; // time during which the softened zone ran far ahead [s]
   double final_length = 0.0; // pre-crack + the farthest extent along the crack's path [m]
-  std::vector<TipSample> tip;
+  double final_softening_length = 0.0; // the same for the softened zone [m]
+  std::vector<TipSample> tip;    // by time, then branch
   std::size_t bars_in_crack = 0; // broken bars connected to the pre-crack
   std::size_t bars_elsewhere = 0; // broken bars that are not (border damage, isolated bars)
 };
 
-// The analysis itself, on broken-bar centres already projected onto the analysis plane.
+// The analysis itself, on broken-bar centres (and the first-softening points of bars, for the
+// softened zone) already projected onto the analysis plane.
 CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGeometry& g,
-                            const CrackOptions& o);
+                            const CrackOptions& o,
+                            const std::vector<CrackPoint>& softening = {});
 
 // Rayleigh wave speed of an isotropic solid [m/s] (root of the Rayleigh equation).
 double rayleigh_speed(double E, double nu, double rho);

@@ -441,6 +441,10 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
       an.insert("branch_fit_length", s.analysis.branch_fit_length);
     if (s.analysis.speed_window > 0)
       an.insert("speed_window", s.analysis.speed_window);
+    if (s.analysis.speed_fit_length > 0)
+      an.insert("speed_fit_length", s.analysis.speed_fit_length);
+    if (s.analysis.zone_flag_length > 0)
+      an.insert("zone_flag_length", s.analysis.zone_flag_length);
     an.insert("fatigue", s.analysis.fatigue);
     if (!s.analysis.fatigue_load.empty())
       an.insert("fatigue_load", s.analysis.fatigue_load);

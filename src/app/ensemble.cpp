@@ -102,6 +102,7 @@ struct Row {
   int branches = 0, open = 0;
   bool secondary = false;
   double speed = 0, speed_over_cR = 0, length_mm = 0, speed_branch = kNaN, cR = 0;
+  double speed_median = 0, speed_unflagged = 0;
   double W = 0, U = 0, K = 0, D = 0, balance = 0, wall = 0;
 };
 
@@ -211,6 +212,8 @@ int ensemble_command(const EnsembleOptions& o) {
       if (!c["speed_before_branching_m_s"].is_null())
         r.speed_branch = c["speed_before_branching_m_s"].get<double>();
       r.speed_over_cR = c["max_crack_speed_over_rayleigh"].get<double>();
+      r.speed_median = c["median_crack_speed_m_s"].get<double>();
+      r.speed_unflagged = c["max_unflagged_crack_speed_m_s"].get<double>();
       r.length_mm = c["final_crack_length_m"].get<double>() * 1e3;
       const std::vector<double> e = last_energy(ro.out_dir + "/energy.csv");
       r.W = e[1];
@@ -224,17 +227,18 @@ int ensemble_command(const EnsembleOptions& o) {
   std::string csv = "case,run,courant,dt,velocity_relative_change,precrack_mirrored,"
                     "branching_length_mm,upper_branch_angle_deg,lower_branch_angle_deg,branches,"
                     "branches_open,secondary_branching,speed_before_branching_m_s,max_crack_speed_m_s,"
-                    "max_speed_over_rayleigh,crack_length_mm,external_work_J,elastic_J,"
+                    "max_speed_over_rayleigh,median_crack_speed_m_s,max_unflagged_crack_speed_m_s,"
+                    "crack_length_mm,external_work_J,elastic_J,"
                     "kinetic_J,dissipated_J,max_balance_error,wall_s\n";
   for (const Row& r : rows)
-    csv += fmt::format("{},{},{:.4f},{:.6g},{:g},{},{},{},{},{},{},{},{},{:.6g},{:.4f},{:.5g},{:.6g},"
+    csv += fmt::format("{},{},{:.4f},{:.6g},{:g},{},{},{},{},{},{},{},{},{:.6g},{:.4f},{:.6g},{:.6g},"
+                       "{:.5g},{:.6g},"
                        "{:.6g},{:.6g},{:.6g},{:.4g},{:.3f}\n",
                        r.case_name, r.run, r.p.courant, r.dt, r.p.velocity_eps,
                        r.p.mirror_precrack ? "true" : "false", num(r.branching_mm, ".4f"),
                        num(r.upper_deg, ".2f"), num(r.lower_deg, ".2f"), r.branches, r.open,
                        r.secondary ? "true" : "false", num(r.speed_branch, ".6g"), r.speed,
-                       r.speed_over_cR, r.length_mm,
-                       r.W, r.U, r.K, r.D, r.balance, r.wall);
+                       r.speed_over_cR, r.speed_median, r.speed_unflagged, r.length_mm, r.W, r.U, r.K, r.D, r.balance, r.wall);
   write_file(o.out_dir + "/ensemble.csv", csv);
 
   std::string md = fmt::format(
@@ -243,8 +247,11 @@ int ensemble_command(const EnsembleOptions& o) {
       "+1e-12 alternately) and the pre-crack as given (runs 0, 1, 4, 5) or mirrored about its "
       "node plane (runs 2, 3, 6, 7). Branching length: from the mouth of the pre-crack to the "
       "first bifurcation; angles of the uppermost and lowermost branch of that bifurcation to "
-      "the pre-crack direction; open: branches that reach a border of the body. Energies at "
-      "the end time, in uJ.\n",
+      "the pre-crack direction; open: branches that reach a border of the body. Speeds: tip "
+      "speeds of the trunk and the branches, each fitted over speed_fit_length of advance; "
+      "max unmarked leaves out the samples where the softened zone runs far ahead of the tip "
+      "or the tip jumps; the median takes the windows in which the crack runs (docs/model.md, "
+      "8b). Energies at the end time, in uJ.\n",
       o.runs);
   for (std::size_t k = 0; k < o.cases.size(); ++k) {
     std::vector<const Row*> rs;
@@ -253,17 +260,18 @@ int ensemble_command(const EnsembleOptions& o) {
         rs.push_back(&r);
     md += fmt::format("\n## {} ({})\n\n", stems[k], rs.front()->title);
     md += "| run | Courant | pre-crack | branching [mm] | upper [deg] | lower [deg] | branches "
-          "(open) | secondary | speed to branching / c_R | max speed / c_R | crack [mm] | U | K | D "
-          "| balance | wall [s] |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+          "(open) | secondary | speed to branching / c_R | max speed / c_R | max unmarked / c_R | "
+          "median speed / c_R | crack [mm] | U | K | D | balance | wall [s] |\n"
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Row* r : rs)
       md += fmt::format("| {} | {:.4f} | {} | {} | {} | {} | {} ({}) | {} | {} | {:.2f} | "
-                        "{:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | {:.2f} |\n",
+                        "{:.2f} | {:.2f} | {:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | {:.2f} |\n",
                         r->run, r->p.courant, r->p.mirror_precrack ? "mirrored" : "as given",
                         num(r->branching_mm, ".3f"), num(r->upper_deg, ".1f"),
                         num(r->lower_deg, ".1f"), r->branches, r->open,
                         r->secondary ? "yes" : "no", num(r->speed_branch / r->cR, ".2f"),
-                        r->speed_over_cR, r->length_mm,
-                        r->U * 1e6, r->K * 1e6, r->D * 1e6, r->balance, r->wall);
+                        r->speed_over_cR, r->speed_unflagged / r->cR, r->speed_median / r->cR,
+                        r->length_mm, r->U * 1e6, r->K * 1e6, r->D * 1e6, r->balance, r->wall);
     auto col = [&](auto f) {
       std::vector<double> v;
       for (const Row* r : rs)
@@ -275,6 +283,8 @@ int ensemble_command(const EnsembleOptions& o) {
     const auto lo = col([](const Row& r) { return r.lower_deg; });
     const auto sp = col([](const Row& r) { return r.speed_branch / r.cR; });
     const auto sr = col([](const Row& r) { return r.speed_over_cR; });
+    const auto su = col([](const Row& r) { return r.speed_unflagged / r.cR; });
+    const auto sm = col([](const Row& r) { return r.speed_median / r.cR; });
     const auto ln = col([](const Row& r) { return r.length_mm; });
     const auto U = col([](const Row& r) { return r.U * 1e6; });
     const auto K = col([](const Row& r) { return r.K * 1e6; });
@@ -286,13 +296,14 @@ int ensemble_command(const EnsembleOptions& o) {
       secondary += r->secondary;
     }
     md += fmt::format("| median | | | {} | {} | {} | {} of {} branched | {} of {} | {} | "
-                      "{:.2f} | {:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | |\n",
+                      "{:.2f} | {:.2f} | {:.2f} | {:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | |\n",
                       num(median(bl), ".3f"), num(median(up), ".1f"), num(median(lo), ".1f"),
                       branched, rs.size(), secondary, rs.size(), num(median(sp), ".2f"), median(sr),
-                      median(ln), median(U), median(K), median(D), median(B));
-    md += fmt::format("| range | | | {} | {} | {} | | | {} | {} | {} | {} | {} | {} | {} | |\n",
+                      median(su), median(sm), median(ln), median(U), median(K), median(D), median(B));
+    md += fmt::format("| range | | | {} | {} | {} | | | {} | {} | {} | {} | {} | {} | {} | {} | {} "
+                      "| |\n",
                       range(bl, ".3f"), range(up, ".1f"), range(lo, ".1f"), range(sp, ".2f"),
-                      range(sr, ".2f"), range(ln, ".3g"), range(U, ".1f"), range(K, ".1f"),
+                      range(sr, ".2f"), range(su, ".2f"), range(sm, ".2f"), range(ln, ".3g"), range(U, ".1f"), range(K, ".1f"),
                       range(D, ".1f"), range(B, ".2g"));
   }
   write_file(o.out_dir + "/ensemble.md", md);

@@ -711,6 +711,10 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.analysis.branch_fit_length =
       r.opt_float(an, "analysis", "branch_fit_length", "analysis.").value_or(0.0);
   c.analysis.speed_window = r.opt_float(an, "analysis", "speed_window", "analysis.").value_or(0.0);
+  c.analysis.speed_fit_length =
+      r.opt_float(an, "analysis", "speed_fit_length", "analysis.").value_or(0.0);
+  c.analysis.zone_flag_length =
+      r.opt_float(an, "analysis", "zone_flag_length", "analysis.").value_or(0.0);
   c.analysis.fatigue = r.get_bool(an, "analysis", "fatigue", "analysis.");
   c.analysis.fatigue_load = r.opt_string(an, "analysis", "fatigue_load", "analysis.").value_or("");
   c.analysis.fatigue_points = r.get_int(an, "analysis", "fatigue_points", "analysis.");

@@ -72,6 +72,8 @@ struct AnalysisSpec {
   double min_branch_length = 0.0; // m (0: 6 L)
   double branch_fit_length = 0.0; // m (0: 10 L)
   double speed_window = 0.0;      // s (0: 4 L / c_R)
+  double speed_fit_length = 0.0;  // m (0: 10 L)
+  double zone_flag_length = 0.0;  // m (0: 3 L)
   bool fatigue = false;
   std::string fatigue_load;            // "" : the first load with a growing sine
   std::int64_t fatigue_points = 10;

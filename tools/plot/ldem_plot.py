@@ -9,8 +9,9 @@ crack.png: the bars that softened (grey) and broke (black) during the run, drawn
 centres on the body seen face on (the plane of its two largest extents), with the pre-cracks
 in red; energy.png: every term of the energy balance against time, and the balance error; fields.png: for each property that varies, its histogram over
 the bars (with the target Weibull density for random fields) and its map over the body seen
-face on; crack_speed.png (after a crack analysis): the crack tip speed against time with the
-Rayleigh speed marked, and the crack length.
+face on; crack_speed.png (after a crack analysis): the tip speed of the trunk and of each
+branch against time with its standard error and the Rayleigh speed marked, and the tips' and
+the softened zone's distance along the crack.
 
 After a fatigue analysis: fatigue_load.png (remote stress of the cyclic load and the probed
 bar forces against time), fatigue_cracks.png (damage at six moments of the growth),
@@ -121,6 +122,14 @@ def crack_png(d, case):
     save(fig, os.path.join(d, "crack.png"))
 
 
+def tip_parts(rows):
+    """crack_tip.csv's rows split by part: 0 the trunk, 1, 2, ... the branches."""
+    parts = {}
+    for r in rows:
+        parts.setdefault(int(r.get("branch", 0)), []).append(r)
+    return parts
+
+
 def crack_speed_png(d):
     path = os.path.join(d, "crack_tip.csv")
     an = crack_analysis(d)
@@ -130,25 +139,34 @@ def crack_speed_png(d):
     if not rows:
         return
     us = 1e6
-    t = [float(r["time"]) * us for r in rows]
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 6.5), sharex=True)
-    ax.plot(t, [float(r["speed"]) for r in rows], "k-", lw=1, label="crack tip speed")
     cR = an["rayleigh_speed_m_s"]
-    ax.axhline(cR, color="tab:red", ls="--", lw=1, label=f"Rayleigh speed {cR:.0f} m/s")
-    ax.axhline(0.45 * cR, color="tab:red", ls=":", lw=1, label="0.45 c_R")
-    ax.set_ylabel("speed [m/s]")
+    along, normal = an["plane_axes"]
+    for b, part in sorted(tip_parts(rows).items()):
+        name = "trunk" if b == 0 else f"branch {b}"
+        t = [float(r["time"]) * us for r in part]
+        v = [float(r["speed"]) / cR for r in part]
+        se = [float(r["speed_se"]) / cR if r["speed_se"] != "nan" else 0.0 for r in part]
+        line, = ax.plot(t, v, lw=1, label=name)
+        ax.fill_between(t, [x - e for x, e in zip(v, se)], [x + e for x, e in zip(v, se)],
+                        color=line.get_color(), alpha=0.25, lw=0)
+        marked = [x if (r["flagged"] == "1" or r["jump"] == "1") else float("nan")
+                  for x, r in zip(v, part)]
+        ax.plot(t, marked, ".", ms=3, color=line.get_color())
+        ax2.plot(t, [float(r["length"]) * 1e3 for r in part], lw=1, color=line.get_color(),
+                 label=f"{name}: tip")
+    front = {float(r["time"]): float(r["softening_length"]) for r in rows}
+    ax2.plot([t * us for t in sorted(front)], [front[t] * 1e3 for t in sorted(front)], "k:", lw=1,
+             label="softened zone's front")
+    ax.axhline(1.0, color="tab:red", ls="--", lw=1, label=f"Rayleigh speed {cR:.0f} m/s")
+    ax.axhline(0.45, color="tab:red", ls=":", lw=1, label="0.45 c_R")
+    ax.set_ylabel("tip speed / c_R")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    ax.set_title(f"crack tip (speed: centred difference over +-{an['speed_window_s'] * us:.2g} us)",
-                 fontsize=10)
-    along, normal = an["plane_axes"]
-    ax2.plot(t, [float(r["tip_" + along]) * 1e3 for r in rows], "k-", lw=1, label=f"tip {along}")
-    ax2.plot(t, [float(r["tip_" + normal]) * 1e3 for r in rows], "k--", lw=1,
-             label=f"tip {normal}")
-    if an.get("branching_length_m") is not None:
-        ax2.axhline(an["branching_point_m"][0] * 1e3, color="tab:blue", lw=0.8,
-                    label="branching point")
-    ax2.set_ylabel("tip position [mm]")
+    ax.set_title(f"crack tip: speed fitted over {an['speed_fit_length_m'] * 1e3:.2g} mm of advance, "
+                 f"band +- its standard error;\ndots: the softened zone runs more than "
+                 f"{an['zone_flag_length_m'] * 1e3:.2g} mm ahead, or the tip jumps", fontsize=9)
+    ax2.set_ylabel("distance along the crack [mm]")
     ax2.set_xlabel("time [us]")
     ax2.legend(fontsize=8)
     ax2.grid(alpha=0.3)
@@ -196,17 +214,24 @@ def ensemble(d):
         path = os.path.join(r, "crack_tip.csv")
         if not os.path.isfile(path):
             continue
-        rows = read_csv(path)
-        ax.plot([float(x["time"]) * us for x in rows], [float(x["speed"]) for x in rows], lw=1,
-                label=case.get("case", {}).get("title", name))
+        rows = tip_parts(read_csv(path))
+        title = case.get("case", {}).get("title", name)
+        color = None
+        for b, part in sorted(rows.items()):
+            # Jumps (the crack joining bars broken ahead of it) are not a tip speed.
+            v = [float(x["speed"]) if x.get("jump", "0") == "0" else float("nan") for x in part]
+            line, = ax.plot([float(x["time"]) * us for x in part], v, lw=1, color=color,
+                            ls="-" if b == 0 else "--", label=title if b == 0 else None)
+            color = line.get_color()
         an = crack_analysis(r)
         cR = an["rayleigh_speed_m_s"] if an else cR
     if cR:
         ax.axhline(cR, color="tab:red", ls="--", lw=1, label=f"Rayleigh speed {cR:.0f} m/s")
     ax.set_xlabel("time [us]")
     ax.set_ylabel("crack tip speed [m/s]")
+    ax.set_title("run 0 of each case: trunk solid, branches dashed, jumps left out", fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left")
     save(fig, os.path.join(d, "crack_speed.png"))
 
 
