@@ -11,6 +11,7 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
@@ -51,171 +52,6 @@ struct Grid {
 // Cells within this many cells (one module) are connected: a crack is a chain of broken bars
 // whose centres are at most a module apart.
 constexpr int kReach = 2;
-
-// A set of cells of one distance shell, connected within the shell.
-struct Component {
-  int shell = 0;
-  std::vector<int> cells;
-  double min_d = kInf, max_d = 0.0, reach = 0.0;
-  std::vector<int> parents, children;
-};
-
-struct Tracker {
-  const Grid& grid;
-  const std::vector<double>& dist; // per cell, kInf outside the crack
-  const CrackOptions& opt;
-  std::vector<int> comp_of; // per cell, -1 outside the crack
-  std::vector<Component> comps;
-  std::vector<std::vector<int>> by_shell;
-
-  Tracker(const Grid& g, const std::vector<double>& d, const CrackOptions& o, double w)
-      : grid(g), dist(d), opt(o), comp_of(d.size(), -1) {
-    int max_shell = 0;
-    for (double x : d)
-      if (x < kInf)
-        max_shell = std::max(max_shell, static_cast<int>(x / w));
-    by_shell.resize(static_cast<std::size_t>(max_shell) + 1);
-    std::vector<int> shell_of(d.size(), -1);
-    for (std::size_t c = 0; c < d.size(); ++c)
-      if (d[c] < kInf)
-        shell_of[c] = static_cast<int>(d[c] / w);
-    // Components of each shell (flood fill within the shell), in order of increasing shell.
-    std::vector<int> order;
-    for (std::size_t c = 0; c < d.size(); ++c)
-      if (d[c] < kInf)
-        order.push_back(static_cast<int>(c));
-    std::stable_sort(order.begin(), order.end(),
-                     [&](int x, int y) { return shell_of[x] < shell_of[y]; });
-    for (int seed : order) {
-      if (comp_of[seed] >= 0)
-        continue;
-      const int id = static_cast<int>(comps.size());
-      Component k;
-      k.shell = shell_of[seed];
-      std::vector<int> stack{seed};
-      comp_of[seed] = id;
-      while (!stack.empty()) {
-        const int c = stack.back();
-        stack.pop_back();
-        k.cells.push_back(c);
-        k.min_d = std::min(k.min_d, d[c]);
-        k.max_d = std::max(k.max_d, d[c]);
-        grid.around(c, kReach, [&](int m, double) {
-          if (comp_of[m] < 0 && shell_of[m] == k.shell) {
-            comp_of[m] = id;
-            stack.push_back(m);
-          }
-        });
-      }
-      by_shell[static_cast<std::size_t>(k.shell)].push_back(id);
-      comps.push_back(std::move(k));
-    }
-    // Parents: components of lower shells next to a component's cells.
-    for (std::size_t id = 0; id < comps.size(); ++id) {
-      for (int c : comps[id].cells)
-        grid.around(c, kReach, [&](int m, double) {
-          const int p = comp_of[m];
-          if (p >= 0 && comps[static_cast<std::size_t>(p)].shell < comps[id].shell)
-            comps[id].parents.push_back(p);
-        });
-      auto& ps = comps[id].parents;
-      std::sort(ps.begin(), ps.end());
-      ps.erase(std::unique(ps.begin(), ps.end()), ps.end());
-      for (int p : ps)
-        comps[static_cast<std::size_t>(p)].children.push_back(static_cast<int>(id));
-    }
-    // Reach: the farthest distance along the crack at or beyond a component.
-    for (std::size_t s = by_shell.size(); s-- > 0;)
-      for (int id : by_shell[s]) {
-        Component& k = comps[static_cast<std::size_t>(id)];
-        k.reach = k.max_d;
-        for (int ch : k.children)
-          k.reach = std::max(k.reach, comps[static_cast<std::size_t>(ch)].reach);
-      }
-  }
-
-  // Components reachable from `start` through children, within `allowed`, up to distance
-  // `limit` (min_d <= limit).
-  std::vector<char> closure(const std::vector<int>& start, const std::vector<char>& allowed,
-                            double limit) const {
-    std::vector<char> in(comps.size(), 0);
-    std::vector<int> stack;
-    for (int s : start)
-      if (allowed[static_cast<std::size_t>(s)]) {
-        in[static_cast<std::size_t>(s)] = 1;
-        stack.push_back(s);
-      }
-    while (!stack.empty()) {
-      const int c = stack.back();
-      stack.pop_back();
-      for (int ch : comps[static_cast<std::size_t>(c)].children) {
-        const auto u = static_cast<std::size_t>(ch);
-        if (!in[u] && allowed[u] && comps[u].min_d <= limit) {
-          in[u] = 1;
-          stack.push_back(ch);
-        }
-      }
-    }
-    return in;
-  }
-
-  // The first shell, from `start` outwards within `allowed`, where the crack runs on as two or
-  // more lineages that each go on for min_branch_length and do not meet again within it.
-  // Returns the groups of components (one per branch) at that shell, empty if none.
-  std::vector<std::vector<int>> first_split(const std::vector<int>& start,
-                                            const std::vector<char>& allowed) const {
-    const std::vector<char> region = closure(start, allowed, kInf);
-    int first_shell = static_cast<int>(by_shell.size());
-    for (int s : start)
-      first_shell = std::min(first_shell, comps[static_cast<std::size_t>(s)].shell);
-    for (std::size_t s = static_cast<std::size_t>(std::max(first_shell, 0)); s < by_shell.size();
-         ++s) {
-      std::vector<int> live;
-      for (int id : by_shell[s]) {
-        const Component& k = comps[static_cast<std::size_t>(id)];
-        if (region[static_cast<std::size_t>(id)] && k.reach - k.max_d >= opt.min_branch_length)
-          live.push_back(id);
-      }
-      if (live.size() < 2)
-        continue;
-      // Lineages that meet again within min_branch_length are one crack (a band with an
-      // island of intact bars), not two branches.
-      std::vector<std::vector<char>> ahead;
-      for (int id : live)
-        ahead.push_back(closure({id}, region,
-                                comps[static_cast<std::size_t>(id)].max_d + opt.min_branch_length));
-      std::vector<int> group(live.size());
-      std::iota(group.begin(), group.end(), 0);
-      auto find = [&](int x) {
-        while (group[static_cast<std::size_t>(x)] != x)
-          x = group[static_cast<std::size_t>(x)] =
-              group[static_cast<std::size_t>(group[static_cast<std::size_t>(x)])];
-        return x;
-      };
-      for (std::size_t x = 0; x < live.size(); ++x)
-        for (std::size_t y = x + 1; y < live.size(); ++y)
-          for (std::size_t c = 0; c < comps.size(); ++c)
-            if (ahead[x][c] && ahead[y][c]) {
-              group[static_cast<std::size_t>(find(static_cast<int>(x)))] =
-                  find(static_cast<int>(y));
-              break;
-            }
-      std::vector<std::vector<int>> groups;
-      std::vector<int> slot(live.size(), -1);
-      for (std::size_t x = 0; x < live.size(); ++x) {
-        const auto r = static_cast<std::size_t>(find(static_cast<int>(x)));
-        if (slot[r] < 0) {
-          slot[r] = static_cast<int>(groups.size());
-          groups.emplace_back();
-        }
-        groups[static_cast<std::size_t>(slot[r])].push_back(live[x]);
-      }
-      if (groups.size() >= 2)
-        return groups;
-    }
-    return {};
-  }
-};
 
 // A straight line through points by principal axes: centre and unit direction.
 struct Line {
@@ -384,62 +220,257 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
     (dist[static_cast<std::size_t>(grid.cell(p.a, p.n))] < kInf ? r.bars_in_crack
                                                                 : r.bars_elsewhere)++;
 
-  // Branching: shells one module wide along the crack, tracked outwards. `branch_of` numbers
-  // the cells of each branch of the first bifurcation (1, 2, ... from +n to -n); 0 is the trunk.
+  // Branching (docs/model.md, 8b, item 5), on the tree of shortest paths from the pre-crack:
+  // each crack cell's parent is the cell its shortest path comes from (-1: the pre-crack).
+  // `branch_of` numbers the cells of each branch of the first bifurcation (1, 2, ... from +n
+  // to -n); 0 is the trunk.
   std::vector<int> branch_of(ncell, 0);
-  const Tracker tr(grid, dist, o, g.L);
   [&] {
-    if (tr.comps.empty())
+    std::vector<int> cells; // the crack's cells, nearest first
+    for (std::size_t c = 0; c < ncell; ++c)
+      if (dist[c] < kInf && !pre[c])
+        cells.push_back(static_cast<int>(c));
+    if (cells.empty())
       return;
-    const std::vector<char> all(tr.comps.size(), 1);
-    std::vector<int> roots(tr.by_shell.front().begin(), tr.by_shell.front().end());
-    const auto groups = tr.first_split(roots, all);
-    if (groups.empty())
-      return;
-
+    std::stable_sort(cells.begin(), cells.end(), [&](int x, int y) {
+      return dist[static_cast<std::size_t>(x)] < dist[static_cast<std::size_t>(y)];
+    });
+    // Node -1 stands for the pre-crack (at its tip, distance 0); the rest are cells.
+    const auto idx = [](int c) { return static_cast<std::size_t>(c); };
+    std::vector<int> parent(ncell, -1);
+    std::vector<std::vector<int>> children(ncell);
+    for (int c : cells) {
+      // The parent: the neighbour on a shortest path (the first found, in grid order).
+      int best = -1;
+      grid.around(c, kReach, [&](int m, double step) {
+        if (best < 0 && (dist[idx(m)] < kInf) &&
+            std::abs(dist[idx(m)] + step - dist[idx(c)]) <= 1e-9 * g.L)
+          best = m;
+      });
+      if (best >= 0 && !pre[idx(best)]) {
+        parent[idx(c)] = best;
+        children[idx(best)].push_back(c);
+      }
+    }
+    // The farthest cell of each subtree (cells in decreasing distance hand theirs up).
+    std::vector<int> far_of(ncell, -1);
+    for (int c : cells)
+      far_of[idx(c)] = c;
+    for (auto it = cells.rbegin(); it != cells.rend(); ++it)
+      if (const int p = parent[idx(*it)];
+          p >= 0 && dist[idx(far_of[idx(*it)])] > dist[idx(far_of[idx(p)])])
+        far_of[idx(p)] = far_of[idx(*it)];
+    const auto d_of = [&](int p) { return p < 0 ? 0.0 : dist[idx(p)]; };
+    const auto pos = [&](int p) {
+      return p < 0 ? std::make_pair(g.tip_a, g.line_n) : std::make_pair(grid.ca(p), grid.cn(p));
+    };
+    // The path from the pre-crack out to cell e, nearest first.
+    const auto path = [&](int e) {
+      std::vector<int> out;
+      for (int c = e; c >= 0; c = parent[idx(c)])
+        out.push_back(c);
+      std::reverse(out.begin(), out.end());
+      return out;
+    };
+    // How far cell e lies from a path (which starts at the pre-crack's tip).
+    const auto gap = [&](int e, const std::vector<int>& route) {
+      const auto [ea, en] = pos(e);
+      double m = std::hypot(ea - g.tip_a, en - g.line_n);
+      for (int c : route)
+        m = std::min(m, std::hypot(ea - grid.ca(c), en - grid.cn(c)));
+      return m;
+    };
+    // Tips: the leaves whose own limb of the tree (from where their path joins the path of a
+    // farther leaf) runs at least min_branch_length; shorter limbs are side cracks or the
+    // links of a band.
+    struct Tip {
+      int end = -1;
+      std::vector<int> route; // its path from the pre-crack, nearest first
+    };
+    std::vector<Tip> tips;
+    for (int c : cells) {
+      if (!children[idx(c)].empty())
+        continue;
+      int q = c;
+      while (parent[idx(q)] >= 0 && far_of[idx(parent[idx(q)])] == c)
+        q = parent[idx(q)];
+      if (d_of(c) - d_of(parent[idx(q)]) >= o.min_branch_length)
+        tips.push_back({c, path(c)});
+    }
+    const auto d_at = [&](const Tip& t, int k) { return k < 0 ? 0.0 : d_of(t.route[idx(k)]); };
+    // Tips x and y are on different branches when their paths part and each runs
+    // min_branch_length beyond, getting at least that far from the other's path; paths that run
+    // side by side (a band) or around a small island are one crack, whatever links them.
+    const std::size_t nt = tips.size();
+    std::vector<double> split_d(nt * nt, kInf); // where they part, if on different branches
+    std::vector<int> part_at(nt * nt, -1);      // [x * nt + y]: where x's path leaves y's
+    std::vector<double> part_d(nt * nt, kInf);  // where their paths part
+    // Where the paths of tips x and y part: on x's, the index of its last cell within a module
+    // of y's before it leaves y's for good or for a branch length (-1: at the pre-crack). The
+    // cells near y's path are stamped y.
+    std::vector<std::size_t> near_path(ncell, nt);
+    for (std::size_t y = 0; y < nt; ++y) {
+      for (int q : tips[y].route) {
+        near_path[idx(q)] = y;
+        grid.around(q, kReach, [&](int m, double step) {
+          if (step <= g.L * (1 + 1e-9))
+            near_path[idx(m)] = y;
+        });
+      }
+      for (std::size_t x = 0; x < nt; ++x) {
+        if (x == y)
+          continue;
+        // The first stretch of at least min_branch_length away from y's path (shorter ones
+        // are the lanes of a band swapping); without one, the last cell near it.
+        const std::vector<int>& route = tips[x].route;
+        int last_near = -1, parted = -2;
+        for (std::size_t k = 0; k < route.size() && parted < -1; ++k) {
+          if (near_path[idx(route[k])] == y)
+            last_near = static_cast<int>(k);
+          else if (d_of(route[k]) - d_at(tips[x], last_near) >= o.min_branch_length)
+            parted = last_near;
+        }
+        if (parted < -1)
+          for (std::size_t k = route.size(); k-- > 0;)
+            if (near_path[idx(route[k])] == y) {
+              parted = static_cast<int>(k);
+              break;
+            }
+        part_at[x * nt + y] = parted < -1 ? -1 : parted;
+      }
+    }
+    for (std::size_t x = 0; x < nt; ++x)
+      for (std::size_t y = 0; y < nt; ++y)
+        if (x != y)
+          part_d[x * nt + y] =
+              0.5 * (d_at(tips[x], part_at[x * nt + y]) + d_at(tips[y], part_at[y * nt + x]));
+    // Whether t's path, beyond index k, gets min_branch_length away from the other's path
+    // somewhere: lanes of a band and the two sides of a small island never do; two branches
+    // do, even when they meet again later (a loop closed by the crack or by damage along a
+    // border is two branches that coalesced).
+    const auto strays = [&](const Tip& t, int k, const Tip& other) {
+      for (std::size_t q = static_cast<std::size_t>(k + 1); q < t.route.size(); ++q)
+        if (gap(t.route[q], other.route) >= o.min_branch_length)
+          return true;
+      return false;
+    };
+    for (std::size_t x = 0; x < nt; ++x)
+      for (std::size_t y = x + 1; y < nt; ++y) {
+        const Tip &tx = tips[x], &ty = tips[y];
+        const int kx = part_at[x * nt + y], ky = part_at[y * nt + x];
+        if (d_of(tx.end) - d_at(tx, kx) < o.min_branch_length ||
+            d_of(ty.end) - d_at(ty, ky) < o.min_branch_length || !strays(tx, kx, ty) ||
+            !strays(ty, ky, tx))
+          continue;
+        split_d[x * nt + y] = split_d[y * nt + x] = part_d[x * nt + y];
+      }
+    struct Group {
+      std::vector<std::size_t> tips;
+      std::size_t lead = 0; // its seed: a tip that parts from the other seeds at the split
+      int part = -1;        // index on the seed's path where it leaves the other seeds' paths
+    };
+    // The first split among the tips `among`: one group of tips per branch (empty if no two
+    // tips are on different branches).
+    const auto first_split = [&](const std::vector<std::size_t>& among) {
+      double first = kInf;
+      for (std::size_t x : among)
+        for (std::size_t y : among)
+          first = std::min(first, split_d[x * nt + y]);
+      std::vector<Group> groups;
+      if (first == kInf)
+        return groups;
+      // The branches of this split: the pair of tips that part there and reach farthest, and
+      // any tip that parts there from each of them; every other tip that reaches a branch
+      // length beyond the split follows the branch it stays with longest (a lane of a band
+      // to its end, a branch that splits again to its next split).
+      std::vector<std::size_t> seeds;
+      double best_reach = -1.0;
+      for (std::size_t x : among)
+        for (std::size_t y : among)
+          if (x < y && split_d[x * nt + y] <= first + g.L &&
+              d_of(tips[x].end) + d_of(tips[y].end) > best_reach) {
+            best_reach = d_of(tips[x].end) + d_of(tips[y].end);
+            seeds = {x, y};
+          }
+      std::vector<std::size_t> by_reach(among);
+      std::stable_sort(by_reach.begin(), by_reach.end(), [&](std::size_t x, std::size_t y) {
+        return d_of(tips[x].end) > d_of(tips[y].end);
+      });
+      for (std::size_t x : by_reach)
+        if (std::find(seeds.begin(), seeds.end(), x) == seeds.end() &&
+            std::all_of(seeds.begin(), seeds.end(),
+                        [&](std::size_t sd) { return split_d[x * nt + sd] <= first + g.L; }))
+          seeds.push_back(x);
+      for (std::size_t sd : seeds)
+        groups.push_back({{sd}, sd, -1});
+      for (std::size_t x : by_reach) {
+        if (std::find(seeds.begin(), seeds.end(), x) != seeds.end() ||
+            d_of(tips[x].end) < first + o.min_branch_length)
+          continue;
+        std::size_t home = 0;
+        for (std::size_t k = 1; k < seeds.size(); ++k)
+          if (part_d[x * nt + seeds[k]] > part_d[x * nt + seeds[home]])
+            home = k;
+        groups[home].tips.push_back(x);
+      }
+      for (Group& gr : groups)
+        for (const Group& other : groups)
+          if (&other != &gr)
+            gr.part = std::max(gr.part, part_at[gr.lead * nt + other.lead]);
+      return groups;
+    };
     auto near_border = [&](double a, double n) {
       return a - g.a_lo < g.L || g.a_hi - a < g.L || n - g.n_lo < g.L || g.n_hi - n < g.L;
     };
-    // One branch: the components reached from its group and from no other group.
-    auto describe = [&](const std::vector<std::vector<int>>& gs, std::size_t which, int level,
-                        const std::vector<char>& allowed, std::vector<char>& own) {
-      own = tr.closure(gs[which], allowed, kInf);
-      for (std::size_t other = 0; other < gs.size(); ++other)
-        if (other != which) {
-          const std::vector<char> theirs = tr.closure(gs[other], allowed, kInf);
-          for (std::size_t c = 0; c < own.size(); ++c)
-            if (theirs[c])
-              own[c] = 0;
+    // The cells of `pool` on each branch: a cell goes to the branch whose seed's path, beyond
+    // where it parts, passes nearest, if it lies farther along the crack than that parting.
+    const auto members = [&](const std::vector<Group>& groups, const std::vector<int>& pool) {
+      std::vector<std::vector<int>> out(groups.size());
+      for (int c : pool) {
+        double best = kInf;
+        std::size_t home = 0;
+        for (std::size_t k = 0; k < groups.size(); ++k) {
+          const Tip& leader = tips[groups[k].lead];
+          const int from = groups[k].part;
+          for (std::size_t q = static_cast<std::size_t>(from + 1); q < leader.route.size(); ++q) {
+            const double e = std::hypot(grid.ca(c) - grid.ca(leader.route[q]),
+                                        grid.cn(c) - grid.cn(leader.route[q]));
+            if (e < best) {
+              best = e;
+              home = k;
+            }
+          }
         }
-      double start = kInf;
-      for (int id : gs[which])
-        start = std::min(start, tr.comps[static_cast<std::size_t>(id)].min_d);
+        if (d_of(c) > d_at(tips[groups[home].lead], groups[home].part))
+          out[home].push_back(c);
+      }
+      return out;
+    };
+    // One branch: its lead's path from where it parts; its angle from a line fitted over the
+    // first branch_fit_length of it.
+    auto describe = [&](const Group& gr, const std::vector<int>& mine, int level) {
+      const Tip& leader = tips[gr.lead];
       BranchInfo b;
       b.level = level;
-      std::vector<std::pair<double, double>> pts;
-      double farthest = -1.0;
-      for (std::size_t id = 0; id < own.size(); ++id) {
-        if (!own[id])
-          continue;
-        for (int c : tr.comps[id].cells) {
-          const double d = dist[static_cast<std::size_t>(c)];
-          if (d <= start + o.fit_length)
-            pts.emplace_back(grid.ca(c), grid.cn(c));
-          if (d > farthest) {
-            farthest = d;
-            b.end_a = grid.ca(c);
-            b.end_n = grid.cn(c);
-          }
-          if (near_border(grid.ca(c), grid.cn(c)))
-            b.opens = true;
-        }
-      }
-      b.length = farthest - start;
+      b.end_a = grid.ca(leader.end);
+      b.end_n = grid.cn(leader.end);
+      const double from = d_at(leader, gr.part);
+      b.length = d_of(leader.end) - from;
+      for (int c : mine)
+        b.opens = b.opens || near_border(grid.ca(c), grid.cn(c));
+      std::vector<std::pair<double, double>> pts{
+          gr.part < 0 ? pos(-1) : pos(leader.route[idx(gr.part)])};
+      for (int c : leader.route)
+        if (d_of(c) > from && d_of(c) <= from + o.fit_length)
+          pts.emplace_back(grid.ca(c), grid.cn(c));
       Line line{0, 0, 1, 0};
       if (pts.size() >= 2) {
         line = fit_line(pts);
-        // Point the direction away from the bifurcation, towards the branch's far end.
-        if ((b.end_a - line.a) * line.da + (b.end_n - line.n) * line.dn < 0) {
+        // Point the direction the way the path runs over the fitted length (a branch may turn
+        // later, even back).
+        const double ra = pts.back().first - pts.front().first;
+        const double rn = pts.back().second - pts.front().second;
+        if (ra * line.da + rn * line.dn < 0) {
           line.da = -line.da;
           line.dn = -line.dn;
         }
@@ -448,51 +479,44 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
       return std::make_pair(b, line);
     };
 
-    std::vector<Line> lines;
-    std::vector<std::vector<char>> owns(groups.size());
-    for (std::size_t k = 0; k < groups.size(); ++k) {
-      auto [b, line] = describe(groups, k, 1, all, owns[k]);
-      r.branches.push_back(b);
-      lines.push_back(line);
-    }
+    std::vector<std::size_t> all(nt);
+    std::iota(all.begin(), all.end(), 0);
+    const std::vector<Group> groups = first_split(all);
+    if (groups.empty())
+      return;
+    const std::vector<std::vector<int>> own = members(groups, cells);
+    std::vector<std::pair<BranchInfo, Line>> first;
+    for (std::size_t k = 0; k < groups.size(); ++k)
+      first.push_back(describe(groups[k], own[k], 1));
     // Order the branches from +n to -n.
-    std::vector<std::size_t> order(groups.size());
+    std::vector<std::size_t> order(first.size());
     std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
-      return r.branches[x].angle_deg > r.branches[y].angle_deg;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+      return first[x].first.angle_deg > first[y].first.angle_deg;
     });
-    for (std::size_t p = 0; p < order.size(); ++p)
-      for (std::size_t id = 0; id < tr.comps.size(); ++id)
-        if (owns[order[p]][id])
-          for (int c : tr.comps[id].cells)
-            branch_of[static_cast<std::size_t>(c)] = static_cast<int>(p) + 1;
-
-    // The bifurcation point: where the lines of the two most divergent branches cross, if
-    // they cross within the crack's reach; otherwise the centre of the last shell before the
-    // split.
-    const Line& up = lines[order.front()];
-    const Line& down = lines[order.back()];
-    const double det = up.da * (-down.dn) - up.dn * (-down.da);
-    double pa = 0, pn = 0;
-    int split_shell = tr.comps[static_cast<std::size_t>(groups[0][0])].shell;
-    {
-      double sa = 0, sn = 0, w = 0;
-      const std::size_t s = static_cast<std::size_t>(std::max(split_shell - 1, 0));
-      for (int id : tr.by_shell[s])
-        for (int c : tr.comps[static_cast<std::size_t>(id)].cells) {
-          sa += grid.ca(c);
-          sn += grid.cn(c);
-          w += 1;
-        }
-      pa = sa / w;
-      pn = sn / w;
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      r.branches.push_back(first[order[k]].first);
+      for (int c : own[order[k]])
+        branch_of[idx(c)] = static_cast<int>(k) + 1;
     }
-    const double angle_gap =
-        r.branches[order.front()].angle_deg - r.branches[order.back()].angle_deg;
-    if (std::abs(det) > 1e-12 && angle_gap > 10.0) {
-      const double ba = down.a - up.a, bn = down.n - up.n;
-      const double s = (ba * (-down.dn) - bn * (-down.da)) / det;
-      const double xa = up.a + s * up.da, xn = up.n + s * up.dn;
+
+    // The bifurcation point: between where the two most divergent branches part, or where the
+    // lines fitted to them cross if that lies within a fit length of it (paths that part at a
+    // small angle stay within a module of each other for a while).
+    const std::size_t up = order.front(), down = order.back();
+    const auto at = [&](const Group& gr) {
+      return gr.part < 0 ? pos(-1) : pos(tips[gr.lead].route[idx(gr.part)]);
+    };
+    const auto [ua, un] = at(groups[up]);
+    const auto [da, dn] = at(groups[down]);
+    double pa = 0.5 * (ua + da), pn = 0.5 * (un + dn);
+    const Line& lu = first[up].second;
+    const Line& ld = first[down].second;
+    const double det = lu.da * (-ld.dn) - lu.dn * (-ld.da);
+    if (std::abs(det) > 1e-12 && first[up].first.angle_deg - first[down].first.angle_deg > 10.0) {
+      const double ba = ld.a - lu.a, bn = ld.n - lu.n;
+      const double s = (ba * (-ld.dn) - bn * (-ld.da)) / det;
+      const double xa = lu.a + s * lu.da, xn = lu.n + s * lu.dn;
       if (std::hypot(xa - pa, xn - pn) <= o.fit_length) {
         pa = xa;
         pn = xn;
@@ -502,21 +526,15 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
     r.branch_n = pn;
     r.branching_length = sense * (pa - g.mouth_a);
 
-    std::vector<BranchInfo> first;
-    for (std::size_t k : order)
-      first.push_back(r.branches[k]);
-    r.branches = first;
-    // Secondary branching: a split within a branch.
+    // Secondary branching: a split among the tips of one branch.
     for (std::size_t k : order) {
-      std::vector<int> start = groups[k];
-      const auto sub = tr.first_split(start, owns[k]);
+      const std::vector<Group> sub = first_split(groups[k].tips);
       if (sub.empty())
         continue;
       r.secondary_branching = true;
-      for (std::size_t j = 0; j < sub.size(); ++j) {
-        std::vector<char> own;
-        r.branches.push_back(describe(sub, j, 2, owns[k], own).first);
-      }
+      const std::vector<std::vector<int>> sub_own = members(sub, own[k]);
+      for (std::size_t j = 0; j < sub.size(); ++j)
+        r.branches.push_back(describe(sub[j], sub_own[j], 2).first);
     }
   }();
 
@@ -618,6 +636,11 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
       bool jump = false;
       for (std::size_t j = lo + 1; j <= hi; ++j)
         jump = jump || se.s[j] - se.s[j - 1] > 2.0 * g.L;
+      // The speed is the window's: flagged when the softened zone ran far ahead of the crack
+      // at any of its samples.
+      bool flagged = false;
+      for (std::size_t j = lo; j <= hi && o.zone_flag_length > 0.0; ++j)
+        flagged = flagged || soft[se.at[j]] - whole[se.at[j]] > o.zone_flag_length;
       TipSample s;
       s.t = se.t[i];
       s.branch = static_cast<int>(b);
@@ -628,7 +651,7 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
       s.speed_se = v_se;
       s.softening_length = pre_length + soft[se.at[i]];
       s.softened_ahead = soft[se.at[i]] - whole[se.at[i]];
-      s.flagged = o.zone_flag_length > 0.0 && s.softened_ahead > o.zone_flag_length;
+      s.flagged = flagged;
       s.jump = jump;
       r.tip.push_back(s);
       // A jump is the crack joining bars broken ahead of it, not its tip's motion.
@@ -638,8 +661,8 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
         r.max_speed = v;
         r.max_speed_se = v_se;
       }
-      if (!s.flagged)
-        r.max_unflagged_speed = std::max(r.max_unflagged_speed, v);
+      if (!s.flagged && !(v <= r.max_unflagged_speed))
+        r.max_unflagged_speed = v;
       if (advanced) {
         running.push_back(v);
         running_of[b].push_back(v);
@@ -652,7 +675,7 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
   }
   auto median = [](std::vector<double> v) {
     if (v.empty())
-      return 0.0;
+      return kNaN;
     std::sort(v.begin(), v.end());
     const std::size_t n = v.size();
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
@@ -663,8 +686,9 @@ CrackAnalysis analyze_crack(const std::vector<CrackPoint>& broken, const CrackGe
     BranchInfo& info = r.branches[b - 1];
     info.median_speed = median(running_of[b]);
     for (const TipSample& s : r.tip)
-      if (s.branch == static_cast<int>(b) && !std::isnan(s.speed) && !s.jump)
-        info.max_speed = std::max(info.max_speed, s.speed);
+      if (s.branch == static_cast<int>(b) && !std::isnan(s.speed) && !s.jump &&
+          !(s.speed <= info.max_speed))
+        info.max_speed = s.speed;
   }
   for (std::size_t k = 0; k < times.size(); ++k)
     if (o.zone_flag_length > 0.0 && whole[k] > 0.0 && soft[k] - whole[k] > o.zone_flag_length)
@@ -758,6 +782,10 @@ CrackAnalysis analyze_crack_dir(const std::string& dir) {
   tip.write(rows);
   tip.commit();
 
+  // A speed that was not measured (no window of the kind) is null.
+  auto or_null = [](double v) {
+    return std::isnan(v) ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(v);
+  };
   nlohmann::ordered_json j;
   j["branching_length_m"] = r.branching_length ? nlohmann::ordered_json(*r.branching_length)
                                                : nlohmann::ordered_json(nullptr);
@@ -770,11 +798,11 @@ CrackAnalysis analyze_crack_dir(const std::string& dir) {
   j["max_crack_speed_m_s"] = r.max_speed;
   j["max_crack_speed_se_m_s"] = std::isnan(r.max_speed_se) ? nlohmann::ordered_json(nullptr)
                                                           : nlohmann::ordered_json(r.max_speed_se);
-  j["max_unflagged_crack_speed_m_s"] = r.max_unflagged_speed;
-  j["median_crack_speed_m_s"] = r.median_speed;
+  j["max_unflagged_crack_speed_m_s"] = or_null(r.max_unflagged_speed);
+  j["median_crack_speed_m_s"] = or_null(r.median_speed);
   j["flagged_time_s"] = r.flagged_time;
   j["tip_jumps"] = r.jumps;
-  j["trunk_median_speed_m_s"] = r.trunk_median_speed;
+  j["trunk_median_speed_m_s"] = or_null(r.trunk_median_speed);
   j["speed_before_branching_m_s"] = r.branching_length && !std::isnan(r.speed_before_branching)
                                         ? nlohmann::ordered_json(r.speed_before_branching)
                                         : nlohmann::ordered_json(nullptr);
@@ -792,8 +820,8 @@ CrackAnalysis analyze_crack_dir(const std::string& dir) {
                   {"end_m", {b.end_a, b.end_n}}});
   for (std::size_t k = 0; k < r.branches.size(); ++k)
     if (r.branches[k].level == 1) {
-      bs[k]["median_speed_m_s"] = r.branches[k].median_speed;
-      bs[k]["max_speed_m_s"] = r.branches[k].max_speed;
+      bs[k]["median_speed_m_s"] = or_null(r.branches[k].median_speed);
+      bs[k]["max_speed_m_s"] = or_null(r.branches[k].max_speed);
     }
   j["branches"] = bs;
   j["final_crack_length_m"] = r.final_length;

@@ -44,7 +44,8 @@ struct TipSample {
   double speed_se = 0.0; // its standard error (NaN with fewer than 3 samples) [m/s]
   double softening_length = 0.0; // pre-crack + the softened zone's extent, whole crack [m]
   double softened_ahead = 0.0;   // how far the softened zone runs ahead of the whole crack [m]
-  bool flagged = false;          // softened_ahead > zone_flag_length
+  // The speed's window holds a sample whose softened_ahead > zone_flag_length.
+  bool flagged = false;
   bool jump = false; // the speed's window holds a step of > 2 L between samples (coalescence)
 };
 
@@ -54,8 +55,9 @@ struct BranchInfo {
   double length = 0.0;    // extent along its path beyond its bifurcation [m]
   bool opens = false;     // reaches the body's border: with the rest of the crack it cuts the body
   double end_a = 0.0, end_n = 0.0; // its farthest point
-  double median_speed = 0.0;       // level 1: median tip speed while it grows [m/s]
-  double max_speed = 0.0;          // level 1: largest tip speed [m/s]
+  // Level 1: median tip speed while it grows, largest tip speed (NaN: none measured) [m/s].
+  double median_speed = std::numeric_limits<double>::quiet_NaN();
+  double max_speed = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct CrackAnalysis {
@@ -66,10 +68,12 @@ struct CrackAnalysis {
   // Speeds over windows without a jump (the crack joining bars broken ahead of it).
   double max_speed = 0.0;    // largest tip speed of the trunk and the branches [m/s]
   double max_speed_se = 0.0; // its standard error [m/s]
-  double max_unflagged_speed = 0.0; // the largest where the softened zone is short [m/s]
+  // The largest over windows where the softened zone stays short (NaN: none) [m/s].
+  double max_unflagged_speed = std::numeric_limits<double>::quiet_NaN();
   int jumps = 0;                    // steps of more than 2 L between two samples of a tip
-  double median_speed = 0.0;           // median tip speed while the crack grows [m/s]
-  double trunk_median_speed = 0.0;     // the same for the trunk alone [m/s]
+  // Median tip speed while the crack grows, and the trunk's alone (NaN: none measured) [m/s].
+  double median_speed = std::numeric_limits<double>::quiet_NaN();
+  double trunk_median_speed = std::numeric_limits<double>::quiet_NaN();
   // Largest trunk speed until its tip reaches the bifurcation (NaN: none measured) [m/s].
   double speed_before_branching = std::numeric_limits<double>::quiet_NaN();
   double flagged_time = 0.0; // time during which the softened zone ran far ahead [s]

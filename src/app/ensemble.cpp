@@ -127,6 +127,14 @@ std::string num(double x, const char* f) {
   return std::isnan(x) ? "-" : fmt::format(fmt::runtime(std::string("{:") + f + "}"), x);
 }
 
+// The median of the measured values, with how many runs measured one when some did not.
+std::string measured_median(const std::vector<double>& v, const char* f) {
+  const auto n = static_cast<std::size_t>(
+      std::count_if(v.begin(), v.end(), [](double x) { return !std::isnan(x); }));
+  const std::string m = num(median(v), f);
+  return n == v.size() || n == 0 ? m : fmt::format("{} ({} of {} runs)", m, n, v.size());
+}
+
 } // namespace
 
 int ensemble_command(const EnsembleOptions& o) {
@@ -212,8 +220,12 @@ int ensemble_command(const EnsembleOptions& o) {
       if (!c["speed_before_branching_m_s"].is_null())
         r.speed_branch = c["speed_before_branching_m_s"].get<double>();
       r.speed_over_cR = c["max_crack_speed_over_rayleigh"].get<double>();
-      r.speed_median = c["median_crack_speed_m_s"].get<double>();
-      r.speed_unflagged = c["max_unflagged_crack_speed_m_s"].get<double>();
+      // null: no window of the kind (an arrested or short crack).
+      auto speed_or_nan = [](const auto& v) {
+        return v.is_null() ? std::numeric_limits<double>::quiet_NaN() : v.template get<double>();
+      };
+      r.speed_median = speed_or_nan(c["median_crack_speed_m_s"]);
+      r.speed_unflagged = speed_or_nan(c["max_unflagged_crack_speed_m_s"]);
       r.length_mm = c["final_crack_length_m"].get<double>() * 1e3;
       const std::vector<double> e = last_energy(ro.out_dir + "/energy.csv");
       r.W = e[1];
@@ -249,9 +261,10 @@ int ensemble_command(const EnsembleOptions& o) {
       "first bifurcation; angles of the uppermost and lowermost branch of that bifurcation to "
       "the pre-crack direction; open: branches that reach a border of the body. Speeds: tip "
       "speeds of the trunk and the branches, each fitted over speed_fit_length of advance; "
-      "max unmarked leaves out the samples where the softened zone runs far ahead of the tip "
-      "or the tip jumps; the median takes the windows in which the crack runs (docs/model.md, "
-      "8b). Energies at the end time, in uJ.\n",
+      "every speed leaves out the windows where the tip jumps; max unmarked also those where "
+      "the softened zone runs far ahead of the tip at some sample; the median takes the "
+      "windows in which the crack runs (docs/model.md, 8b); -: none measured. Energies at the "
+      "end time, in uJ.\n",
       o.runs);
   for (std::size_t k = 0; k < o.cases.size(); ++k) {
     std::vector<const Row*> rs;
@@ -265,12 +278,13 @@ int ensemble_command(const EnsembleOptions& o) {
           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Row* r : rs)
       md += fmt::format("| {} | {:.4f} | {} | {} | {} | {} | {} ({}) | {} | {} | {:.2f} | "
-                        "{:.2f} | {:.2f} | {:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | {:.2f} |\n",
+                        "{} | {} | {:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | {:.2f} |\n",
                         r->run, r->p.courant, r->p.mirror_precrack ? "mirrored" : "as given",
                         num(r->branching_mm, ".3f"), num(r->upper_deg, ".1f"),
                         num(r->lower_deg, ".1f"), r->branches, r->open,
                         r->secondary ? "yes" : "no", num(r->speed_branch / r->cR, ".2f"),
-                        r->speed_over_cR, r->speed_unflagged / r->cR, r->speed_median / r->cR,
+                        r->speed_over_cR, num(r->speed_unflagged / r->cR, ".2f"),
+                        num(r->speed_median / r->cR, ".2f"),
                         r->length_mm, r->U * 1e6, r->K * 1e6, r->D * 1e6, r->balance, r->wall);
     auto col = [&](auto f) {
       std::vector<double> v;
@@ -296,10 +310,10 @@ int ensemble_command(const EnsembleOptions& o) {
       secondary += r->secondary;
     }
     md += fmt::format("| median | | | {} | {} | {} | {} of {} branched | {} of {} | {} | "
-                      "{:.2f} | {:.2f} | {:.2f} | {:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | |\n",
+                      "{:.2f} | {} | {} | {:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | |\n",
                       num(median(bl), ".3f"), num(median(up), ".1f"), num(median(lo), ".1f"),
-                      branched, rs.size(), secondary, rs.size(), num(median(sp), ".2f"), median(sr),
-                      median(su), median(sm), median(ln), median(U), median(K), median(D), median(B));
+                      branched, rs.size(), secondary, rs.size(), measured_median(sp, ".2f"),
+                      median(sr), measured_median(su, ".2f"), measured_median(sm, ".2f"), median(ln), median(U), median(K), median(D), median(B));
     md += fmt::format("| range | | | {} | {} | {} | | | {} | {} | {} | {} | {} | {} | {} | {} | {} "
                       "| |\n",
                       range(bl, ".3f"), range(up, ".1f"), range(lo, ".1f"), range(sp, ".2f"),

@@ -164,8 +164,8 @@ def crack_speed_png(d):
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     ax.set_title(f"crack tip: speed fitted over {an['speed_fit_length_m'] * 1e3:.2g} mm of advance, "
-                 f"band +- its standard error;\ndots: the softened zone runs more than "
-                 f"{an['zone_flag_length_m'] * 1e3:.2g} mm ahead, or the tip jumps", fontsize=9)
+                 f"band +- its standard error;\ndots: windows where the softened zone ran more than "
+                 f"{an['zone_flag_length_m'] * 1e3:.2g} mm ahead, or the tip jumped", fontsize=9)
     ax2.set_ylabel("distance along the crack [mm]")
     ax2.set_xlabel("time [us]")
     ax2.legend(fontsize=8)
