@@ -132,6 +132,24 @@ if "$LDEM" run "$T/weibull.toml" --out "$T/weibull" >/dev/null 2>"$T/stderr" && 
   [ "$(head -1 "$T/weibull/fields.csv")" = "bar,x,y,z,E,Gf,e_p,e_r" ] &&
   grep -q 'Name="Gf"' "$T/weibull/lattice_000000.vtu"; then ok; else bad "Weibull fields: $(cat "$T/stderr")"; fi
 
+# crack.png of a 3-D body: the tutorial plate made 12 x 8 x 10 modules, notched through its
+# 8-module depth, cracks across z in an x-y plane: the default shows that crack face on (x-y,
+# coloured by z) beside a slice through the middle of the thinnest direction (y = 20 mm);
+# --slice and --view choose; a bad one is refused (exit 2, what was expected) before any
+# picture is written.
+sed 's/^modules = \[40, 1, 20\].*/modules = [12, 8, 10]/; s/^plane_strain = .*//; s/^origin = .*/origin = [-0.0001, -0.001, 0.02625]/; s/^edge1 = .*/edge1 = [0.0251, 0.0, 0.0]/; s/^edge2 = .*/edge2 = [0.0, 0.042, 0.0]/; s/^at = .*/at = [0.0275, 0.0025, 0.025]/' "$GOOD" >"$T/cube.toml"
+if "$LDEM" run "$T/cube.toml" --out "$T/cube" >"$T/stdout" 2>"$T/stderr" &&
+  grep -q "crack.png: the crack face on, x-y (colour: z); slice y = 20 mm" "$T/stdout" && [ -s "$T/cube/crack.png" ] &&
+  "$LDEM" plot "$T/cube" --slice x=0.03 | grep -q "crack.png: slice x = 30 mm" &&
+  "$LDEM" plot "$T/cube" --view xz | grep -q "crack.png: every bar projected on the x-z plane"; then ok; else bad "3-D crack.png: $(cat "$T/stdout" "$T/stderr")"; fi
+rm -f "$T/cube/crack.png" "$T/cube/energy.png"
+"$LDEM" plot "$T/cube" --slice y=1 >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q "slice: expected y between 0 and 0.04 m (the body); got 1" "$T/stderr" && [ ! -e "$T/cube/crack.png" ] && [ ! -e "$T/cube/energy.png" ] && ok || bad "bad --slice: rc $rc, $(cat "$T/stderr")"
+"$LDEM" plot "$T/cube" --view xx >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q "view: expected two different axes among x, y, z" "$T/stderr" && ok || bad "bad --view: rc $rc, $(cat "$T/stderr")"
+
 # The crack analysis: a shipped plate with [analysis] crack = true leaves crack_tip.csv,
 # crack_speed.png and analysis.crack; `ldem analyze crack` on a folder that is not an output
 # folder is an error naming the file.

@@ -69,7 +69,11 @@ int run_command(const std::string& path, const RunOptions& options);
 // Under mpirun, grid_y x grid_z processes (0 0: the grid that cuts the least).
 int resume_command(const std::string& out_dir, int threads, bool plots, int grid_y = 0,
                    int grid_z = 0);
-int plot_command(const std::string& dir);
+// The pictures of an output folder (tools/plot/ldem_plot.py); `view` ("xz", ...) and `cut`
+// ("y=0.015") choose crack.png's projection or slice (empty: the default for the body).
+// 0: done; 1: no matplotlib; 2: a bad view or slice (the script says which).
+int plot_command(const std::string& dir, const std::string& view = "",
+                 const std::string& cut = "");
 // Prints the `count` lowest eigenfrequencies of the case's lattice (solver/modes.hpp) as a table,
 // with the time step and any periodic load frequency compared to the lowest. No files.
 int modes_command(const std::string& path, int count, int threads);

@@ -19,6 +19,7 @@
 #include <fstream>
 #include <omp.h>
 #include <sstream>
+#include <sys/wait.h>
 #include <variant>
 
 #ifndef LDEM_PLOT_SCRIPT
@@ -314,9 +315,23 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
   });
 }
 
-int plot_command(const std::string& dir) {
-  const std::string cmd = fmt::format("/usr/bin/python3 '{}' '{}'", LDEM_PLOT_SCRIPT, dir);
+int plot_command(const std::string& dir, const std::string& view, const std::string& cut) {
+  // The options go to the script as single-quoted words: refuse a quote in them.
+  for (const std::string* o : {&view, &cut})
+    if (o->find('\'') != std::string::npos) {
+      fmt::print(stderr, "ldem plot: --view/--slice: expected letters, digits, '=' and '.'; got "
+                         "'{}'\n", *o);
+      return 2;
+    }
+  std::string cmd = fmt::format("/usr/bin/python3 '{}'", LDEM_PLOT_SCRIPT);
+  if (!view.empty())
+    cmd += fmt::format(" --view '{}'", view);
+  if (!cut.empty())
+    cmd += fmt::format(" --slice '{}'", cut);
+  cmd += fmt::format(" '{}'", dir);
   const int rc = std::system(cmd.c_str());
+  if (rc != -1 && WIFEXITED(rc) && WEXITSTATUS(rc) == 2)
+    return 2; // bad --view or --slice, said by the script
   if (rc != 0) {
     fmt::print(stderr, "ldem: warning: plotting failed (needs /usr/bin/python3 with matplotlib: "
                        "apt-get install python3-matplotlib); the data files are complete\n");

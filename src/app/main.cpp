@@ -79,6 +79,14 @@ int main(int argc, char** argv) {
   auto* cmd_plot =
       app.add_subcommand("plot", "Make crack.png, energy.png (and fields.png) of an output folder");
   cmd_plot->add_option("dir", plot_dir, "Output folder of a run")->required();
+  std::string plot_view, plot_slice;
+  cmd_plot->add_option("--view", plot_view,
+                       "crack.png: every bar projected on this plane (xz, xy or yz); default the "
+                       "face-on plane of a thin body, the crack face on and a slice across it "
+                       "for a 3-D body");
+  cmd_plot->add_option("--slice", plot_slice,
+                       "crack.png: only the bars within half a module of the plane AXIS=VALUE "
+                       "(VALUE in m; for example y=0.015)");
 
   std::string analyze_what, analyze_dir;
   auto* cmd_analyze = app.add_subcommand(
@@ -195,7 +203,7 @@ int main(int argc, char** argv) {
     if (cmd_check->parsed())
       return ldem::check_command(case_path);
     if (cmd_plot->parsed())
-      return ldem::plot_command(plot_dir);
+      return ldem::plot_command(plot_dir, plot_view, plot_slice);
     if (cmd_modes->parsed())
       return ldem::modes_command(case_path, modes_count, modes_threads);
     if (cmd_ensemble->parsed()) {

@@ -2,12 +2,17 @@
 """Pictures of an ldem output folder: crack.png, energy.png and, for heterogeneous materials,
 fields.png.
 
-usage: ldem_plot.py DIR              (run by `ldem run` at the end, or `ldem plot DIR`)
+usage: ldem_plot.py [--view AB] [--slice AXIS=VALUE] DIR
+                                     (run by `ldem run` at the end, or `ldem plot DIR`)
        ldem_plot.py --ensemble DIR   (run by `ldem ensemble` at the end)
 
 crack.png: the bars that softened (grey) and broke (black) during the run, drawn at their
-centres on the body seen face on (the plane of its two largest extents), with the pre-cracks
-in red; energy.png: every term of the energy balance against time, and the balance error; fields.png: for each property that varies, its histogram over
+centres, with the pre-cracks in red: a body at most two modules thick seen face on (the plane
+of its two largest extents); a 3-D body as two panels, the crack face on (seen along the
+direction in which its broken bars spread least, coloured by their depth) and a slice one
+module thick through the middle of the body's thinnest direction; --view AB (xz, xy, yz): every
+bar projected on that plane; --slice AXIS=VALUE (m): the bars within half a module of that
+plane; energy.png: every term of the energy balance against time, and the balance error; fields.png: for each property that varies, its histogram over
 the bars (with the target Weibull density for random fields) and its map over the body seen
 face on; crack_speed.png (after a crack analysis): the tip speed of the trunk and of each
 branch against time with its standard error and the Rayleigh speed marked, and the tips' and
@@ -55,30 +60,62 @@ def crack_analysis(d):
         return json.load(f).get("analysis", {}).get("crack")
 
 
-def draw_crack(ax, d, case, legend=True):
-    """The crack pattern of run folder d on ax; returns the plane's axes."""
-    n = case["lattice"]["modules"]
-    L = case["lattice"]["L"]
-    ext = [n[i] * L for i in range(3)]
-    a, b = sorted(range(3), key=lambda i: -ext[i])[:2]
-    a, b = min(a, b), max(a, b)
-    names = "xyz"
+def read_events(d):
+    """Each bar's softening and rupture centres: (softened only, broken), bar -> (x, y, z)."""
     soft, broken = {}, {}
     for row in read_csv(os.path.join(d, "events.csv")):
-        p = (float(row["xyz"[a]]), float(row["xyz"[b]]))
+        p = (float(row["x"]), float(row["y"]), float(row["z"]))
         (soft if row["event"] == "softening" else broken)[row["bar"]] = p
     for bar in broken:
         soft.pop(bar, None)
+    return soft, broken
+
+
+def face_on_plane(case):
+    """The plane of the body's two largest extents (a <= b)."""
+    n = case["lattice"]["modules"]
+    return tuple(sorted(sorted(range(3), key=lambda i: -n[i])[:2]))
+
+
+def draw_crack(ax, d, case, legend=True, plane=None, depth=None, slab=None, events=None):
+    """The crack pattern of run folder d on ax, projected on `plane` (two axis indices, default
+    the body's face-on plane); `depth`: colour broken bars by this axis; `slab` = (axis, value,
+    half width): only bars whose centre lies that close to the plane axis = value."""
+    n = case["lattice"]["modules"]
+    L = case["lattice"]["L"]
+    ext = [n[i] * L for i in range(3)]
+    a, b = plane if plane else face_on_plane(case)
+    names = "xyz"
+    soft, broken = events if events else read_events(d)
+    if slab:
+        k, v, w = slab
+        soft = {bar: p for bar, p in soft.items() if abs(p[k] - v) <= w}
+        broken = {bar: p for bar, p in broken.items() if abs(p[k] - v) <= w}
     ax.add_patch(plt.Rectangle((0, 0), ext[a], ext[b], fill=False, lw=0.8, color="0.3"))
     mm = 1e3
     if soft:
-        xs, ys = zip(*soft.values())
-        ax.scatter([x * mm for x in xs], [y * mm for y in ys], s=2, c="0.65", lw=0,
+        ps = list(soft.values())
+        ax.scatter([p[a] * mm for p in ps], [p[b] * mm for p in ps], s=2, c="0.65", lw=0,
                    label=f"softened ({len(soft)})")
     if broken:
-        xs, ys = zip(*broken.values())
-        ax.scatter([x * mm for x in xs], [y * mm for y in ys], s=3, c="k", lw=0,
-                   label=f"broken ({len(broken)})")
+        ps = list(broken.values())
+        if depth is None:
+            ax.scatter([p[a] * mm for p in ps], [p[b] * mm for p in ps], s=3, c="k", lw=0,
+                       label=f"broken ({len(broken)})")
+        else:
+            # One point per position in the plane, coloured by the mean depth of the broken bars
+            # behind it (a crack through the depth reads as its middle).
+            column = {}
+            for p in ps:
+                key = (round(p[a] / (L / 8)), round(p[b] / (L / 8)))
+                s_, c_, n_ = column.get(key, (p, 0.0, 0))
+                column[key] = (s_, c_ + p[depth], n_ + 1)
+            pts = list(column.values())
+            sc = ax.scatter([p[a] * mm for p, _, _ in pts], [p[b] * mm for p, _, _ in pts], s=4,
+                            c=[c / k * mm for _, c, k in pts], cmap="viridis", lw=0, vmin=0.0,
+                            vmax=ext[depth] * mm, label=f"broken ({len(broken)})")
+            ax.figure.colorbar(sc, ax=ax, shrink=0.8,
+                               label=f"mean {names[depth]} of the broken bars behind [mm]")
     for pc in case.get("precrack", []):
         o, e1, e2 = pc["origin"], pc["edge1"], pc["edge2"]
         pts = [o, [o[i] + e1[i] for i in range(3)], [o[i] + e1[i] + e2[i] for i in range(3)],
@@ -110,16 +147,87 @@ def draw_crack(ax, d, case, legend=True):
         ax.legend(loc="upper right", fontsize=7, markerscale=4)
 
 
-def crack_png(d, case):
+def fail(message):
+    """Bad input: the message, exit status 2 (ldem plot passes it on), no picture written."""
+    print(message, file=sys.stderr)
+    sys.exit(2)
+
+
+def parse_view(text):
+    """'xz' -> (0, 2)."""
+    if len(text) != 2 or any(c not in "xyz" for c in text) or text[0] == text[1]:
+        fail(f"ldem plot: --view: expected two different axes among x, y, z (xz, xy, yz); "
+             f"got '{text}'")
+    return tuple(sorted("xyz".index(c) for c in text))
+
+
+def parse_slice(text, case):
+    """'y=0.015' -> (1, 0.015): the axis and the plane's coordinate in m, inside the body."""
+    axis, _, value = text.partition("=")
+    n, L = case["lattice"]["modules"], case["lattice"]["L"]
+    try:
+        k, v = "xyz".index(axis.strip()), float(value)
+    except ValueError:
+        fail(f"ldem plot: --slice: expected AXIS=VALUE with AXIS one of x, y, z and VALUE "
+             f"in m (for example y=0.015); got '{text}'")
+    if not 0.0 <= v <= n[k] * L:
+        fail(f"ldem plot: --slice: expected {axis.strip()} between 0 and {n[k] * L:.6g} m "
+             f"(the body); got {v:.6g}")
+    return k, v
+
+
+def crack_png(d, case, view=None, cut=None):
+    """crack.png. A body thin in one direction (at most two modules), or a view asked for: the
+    bars seen face on. A 3-D body: the crack seen face on (along the direction in which its
+    broken bars spread least), coloured by depth, beside a slice through the middle of the
+    body's thinnest direction. A slice asked for: the bars within half a module of it."""
     n = case["lattice"]["modules"]
     L = case["lattice"]["L"]
     ext = [n[i] * L for i in range(3)]
-    a, b = sorted(sorted(range(3), key=lambda i: -ext[i])[:2])
-    fig, ax = plt.subplots(figsize=(6.5, 6.5 * ext[b] / ext[a] if ext[a] > 0 else 6.5))
-    draw_crack(ax, d, case)
+    names = "xyz"
     title = case.get("case", {}).get("title", "")
-    ax.set_title((title + "\n" if title else "") + "crack pattern (pre-crack in red)", fontsize=10)
+    events = read_events(d)
+    soft, broken = events
+    cloud = list(broken.values()) or list(soft.values())
+    panels = []  # (plane, depth, slab, title)
+    if cut:
+        k, v = cut
+        plane = tuple(i for i in range(3) if i != k)
+        panels.append((plane, None, (k, v, 0.5 * L),
+                       f"slice {names[k]} = {v * 1e3:.4g} mm (bars within half a module)"))
+    elif view or min(n) <= 2 or not cloud:
+        plane = view if view else face_on_plane(case)
+        panels.append((plane, None, None,
+                       f"every bar projected on the {names[plane[0]]}-{names[plane[1]]} plane"
+                       if view else "crack pattern (pre-crack in red)"))
+    else:
+        # The crack's normal: the direction of least spread of the broken bars (the smallest
+        # principal axis of their centres), taken as the coordinate axis nearest to it.
+        import numpy as np
+        w, vec = np.linalg.eigh(np.cov(np.array(cloud).T))
+        normal = int(np.argmax(np.abs(vec[:, 0])))
+        face = tuple(i for i in range(3) if i != normal)
+        # The slice: through the middle of the body's thinnest direction (the section a 2-D
+        # model of the specimen would show; for a cube, across the crack).
+        across = min(range(3), key=lambda i: (ext[i], i == normal))
+        mid = 0.5 * ext[across]
+        panels.append((face, normal, None,
+                       f"the crack face on, {names[face[0]]}-{names[face[1]]} "
+                       f"(colour: {names[normal]})"))
+        panels.append((tuple(i for i in range(3) if i != across), None,
+                       (across, mid, 0.5 * L),
+                       f"slice {names[across]} = {mid * 1e3:.4g} mm, the middle of the body"))
+    width = [ext[p[0]] / max(ext[p[1]], 1e-300) for p, *_ in panels]
+    fig, axes = plt.subplots(1, len(panels), squeeze=False, layout="constrained",
+                             figsize=(sum(min(max(5.0 * w, 3.0), 9.0) for w in width) + 1.5 *
+                                      len(panels), 5.0))
+    for ax, (plane, depth, slab, sub) in zip(axes[0], panels):
+        draw_crack(ax, d, case, plane=plane, depth=depth, slab=slab, events=events)
+        ax.set_title(sub, fontsize=9)
+    fig.suptitle((title + "\n" if title else "") + "softened (grey) and broken (black) bars",
+                 fontsize=10)
     save(fig, os.path.join(d, "crack.png"))
+    print("crack.png: " + "; ".join(sub for _, _, _, sub in panels))
 
 
 def tip_parts(rows):
@@ -483,12 +591,19 @@ def main():
     if len(sys.argv) == 3 and sys.argv[1] == "--ensemble":
         ensemble(sys.argv[2])
         return
-    if len(sys.argv) != 2:
+    args = sys.argv[1:]
+    options = {}
+    while len(args) >= 2 and args[0] in ("--view", "--slice"):
+        options[args[0]] = args[1]
+        args = args[2:]
+    if len(args) != 1:
         sys.exit(__doc__)
-    d = sys.argv[1]
+    d = args[0]
     with open(os.path.join(d, "case.resolved.toml"), "rb") as f:
         case = tomllib.load(f)
-    crack_png(d, case)
+    view = parse_view(options["--view"]) if "--view" in options else None
+    cut = parse_slice(options["--slice"], case) if "--slice" in options else None
+    crack_png(d, case, view, cut)
     energy_png(d)
     fields_png(d, case)
     crack_speed_png(d)
