@@ -46,6 +46,17 @@ std::pair<double, double> segment(std::vector<CrackPoint>& out, double a0, doubl
   return {a0 + length * c, n0 + length * s};
 }
 
+// A crack straight to a = 1.0 mm (14 modules beyond the pre-crack tip) at 500 m/s, then two
+// branches at +30 and -30 degrees, `up` and `down` modules long, growing at their speeds.
+std::vector<CrackPoint> fork(int up, double up_speed, int down, double down_speed) {
+  std::vector<CrackPoint> b;
+  const auto [a1, n1] = segment(b, 6 * kL, 30.25 * kL, 0.0, 14 * kL, 3e-6, 500.0);
+  const double t1 = 3e-6 + 14 * kL / 500.0;
+  segment(b, a1, n1, 30.0, up * kL, t1, up_speed);
+  segment(b, a1, n1, -30.0, down * kL, t1, down_speed);
+  return b;
+}
+
 // Isolated broken bars away from the crack and a short side crack (3 modules): noise that is
 // not a branch.
 void add_noise(std::vector<CrackPoint>& out) {
@@ -57,6 +68,39 @@ void add_noise(std::vector<CrackPoint>& out) {
       out.push_back({5e-6, a, n});
   }
   segment(out, 12 * kL, 30.25 * kL, 90.0, 3 * kL, 4e-6, 300.0);
+}
+
+// A first bifurcation at `at` (from the mouth, within at_tol) into two branches at `upper` and
+// `lower` degrees (within angle_tol).
+void expect_bifurcation(const CrackAnalysis& r, double at, double at_tol, double upper,
+                        double lower, double angle_tol) {
+  ASSERT_TRUE(r.branching_length.has_value());
+  EXPECT_NEAR(*r.branching_length, at, at_tol);
+  ASSERT_GE(r.branches.size(), 2u);
+  EXPECT_EQ(r.branches[1].level, 1);
+  EXPECT_NEAR(r.branches[0].angle_deg, upper, angle_tol);
+  EXPECT_NEAR(r.branches[1].angle_deg, lower, angle_tol);
+}
+
+// A straight crack from the pre-crack tip to the right border at 500 m/s that sheds, `stem`
+// modules beyond the tip, a side branch of `side` modules at `angle` degrees growing at
+// `speed`.
+CrackAnalysis side_branch_crack(int stem, double angle, int side, double speed) {
+  std::vector<CrackPoint> b;
+  const auto [a1, n1] = segment(b, 6 * kL, 30.25 * kL, 0.0, stem * kL, 3e-6, 500.0);
+  const double t1 = 3e-6 + stem * kL / 500.0;
+  segment(b, a1, n1, 0.0, (54 - stem) * kL, t1, 500.0);
+  segment(b, a1, n1, angle, side * kL, t1, speed);
+  return analyze_crack(b, plate(), options());
+}
+
+// Its analysis: a bifurcation at `at` into the straight path (0 degrees, open) and the side
+// branch (arrested).
+void expect_side_branch(const CrackAnalysis& r, double at, double angle, double angle_tol) {
+  expect_bifurcation(r, at, 1.5 * kL, 0.0, angle, angle_tol);
+  ASSERT_EQ(r.branches.size(), 2u);
+  EXPECT_TRUE(r.branches[0].opens);
+  EXPECT_FALSE(r.branches[1].opens);
 }
 
 // The tip speed is a least-squares slope over a window in which the tip advances at least
@@ -87,11 +131,7 @@ TEST(CrackAnalysis, StraightCrackHasNoBranchAndItsSpeed) {
 // and a lower one at 250 m/s, 24 modules each, give median speeds of 500 and 250 m/s to within
 // a tenth (above); the farthest point of the whole crack would follow the fast branch alone.
 TEST(CrackAnalysis, EachBranchHasItsOwnTipSpeed) {
-  std::vector<CrackPoint> b;
-  const auto [a1, n1] = segment(b, 6 * kL, 30.25 * kL, 0.0, 14 * kL, 3e-6, 500.0);
-  const double t1 = 3e-6 + 14 * kL / 500.0;
-  segment(b, a1, n1, 30.0, 24 * kL, t1, 500.0);
-  segment(b, a1, n1, -30.0, 24 * kL, t1, 250.0);
+  std::vector<CrackPoint> b = fork(24, 500.0, 24, 250.0);
   const CrackAnalysis r = analyze_crack(b, plate(), options());
   ASSERT_EQ(r.branches.size(), 2u);
   EXPECT_NEAR(r.branches[0].median_speed, 500.0, 50.0);
@@ -174,18 +214,11 @@ TEST(CrackAnalysis, SoftenedZoneFarAheadOfTheTipIsFlagged) {
 
 TEST(CrackAnalysis, SymmetricBranchingAtKnownLengthAndAngles) {
   // Straight to a = 1.0 mm, then two branches at +30 and -30 degrees, 1 mm each.
-  std::vector<CrackPoint> b;
-  const auto [a1, n1] = segment(b, 6 * kL, 30.25 * kL, 0.0, 14 * kL, 3e-6, 500.0);
-  const double t1 = 3e-6 + 14 * kL / 500.0;
-  segment(b, a1, n1, 30.0, 20 * kL, t1, 500.0);
-  segment(b, a1, n1, -30.0, 20 * kL, t1, 500.0);
+  std::vector<CrackPoint> b = fork(20, 500.0, 20, 500.0);
   add_noise(b);
   const CrackAnalysis r = analyze_crack(b, plate(), options());
-  ASSERT_TRUE(r.branching_length.has_value());
-  EXPECT_NEAR(*r.branching_length, 1.0e-3, kL); // within one module
+  expect_bifurcation(r, 1.0e-3, kL, 30.0, -30.0, 2.0); // within one module
   ASSERT_EQ(r.branches.size(), 2u);
-  EXPECT_NEAR(r.branches[0].angle_deg, 30.0, 2.0);
-  EXPECT_NEAR(r.branches[1].angle_deg, -30.0, 2.0);
   EXPECT_FALSE(r.secondary_branching);
   EXPECT_FALSE(r.branches[0].opens); // their ends are 0.5 mm inside the plate
 }
@@ -193,19 +226,8 @@ TEST(CrackAnalysis, SymmetricBranchingAtKnownLengthAndAngles) {
 TEST(CrackAnalysis, OneStraightOneInclinedBranch) {
   // The crack goes on straight and sheds one branch at -35 degrees at a = 1.2 mm: the two
   // separate slowly, and the bifurcation point comes from crossing the two fitted lines.
-  std::vector<CrackPoint> b;
-  const auto [a1, n1] = segment(b, 6 * kL, 30.25 * kL, 0.0, 18 * kL, 3e-6, 500.0);
-  const double t1 = 3e-6 + 18 * kL / 500.0;
-  segment(b, a1, n1, 0.0, 36 * kL, t1, 500.0); // to the right border: it opens
-  segment(b, a1, n1, -35.0, 16 * kL, t1, 500.0);
-  const CrackAnalysis r = analyze_crack(b, plate(), options());
-  ASSERT_TRUE(r.branching_length.has_value());
-  EXPECT_NEAR(*r.branching_length, 1.2e-3, 1.5 * kL);
-  ASSERT_EQ(r.branches.size(), 2u);
-  EXPECT_NEAR(r.branches[0].angle_deg, 0.0, 2.0);
-  EXPECT_NEAR(r.branches[1].angle_deg, -35.0, 2.0);
-  EXPECT_TRUE(r.branches[0].opens);
-  EXPECT_FALSE(r.branches[1].opens);
+  // The straight path runs to the right border: it opens.
+  expect_side_branch(side_branch_crack(18, -35.0, 16, 500.0), 1.2e-3, -35.0, 2.0);
 }
 
 TEST(CrackAnalysis, TwoLevelsOfBranching) {
@@ -235,19 +257,7 @@ TEST(CrackAnalysis, TwoLevelsOfBranching) {
 // stops after 14 modules. A reader sees a bifurcation at 0.5 mm, branches at 0 and -45
 // degrees, the straight one open.
 TEST(CrackAnalysis, EarlyArrestedSideBranch) {
-  std::vector<CrackPoint> b;
-  const auto [a1, n1] = segment(b, 6 * kL, 30.25 * kL, 0.0, 4 * kL, 3e-6, 500.0);
-  const double t1 = 3e-6 + 4 * kL / 500.0;
-  segment(b, a1, n1, 0.0, 50 * kL, t1, 500.0);
-  segment(b, a1, n1, -45.0, 14 * kL, t1, 400.0);
-  const CrackAnalysis r = analyze_crack(b, plate(), options());
-  ASSERT_TRUE(r.branching_length.has_value());
-  EXPECT_NEAR(*r.branching_length, 0.5e-3, 1.5 * kL);
-  ASSERT_EQ(r.branches.size(), 2u);
-  EXPECT_NEAR(r.branches[0].angle_deg, 0.0, 3.0);
-  EXPECT_NEAR(r.branches[1].angle_deg, -45.0, 3.0);
-  EXPECT_TRUE(r.branches[0].opens);
-  EXPECT_FALSE(r.branches[1].opens);
+  expect_side_branch(side_branch_crack(4, -45.0, 14, 400.0), 0.5e-3, -45.0, 3.0);
 }
 
 // A band of alternating paths: two parallel paths 2 modules apart from the pre-crack tip to
@@ -280,11 +290,8 @@ TEST(CrackAnalysis, PathsLinkedAfterTheySeparateStillBranch) {
   for (double d : {6.0, 9.0, 12.0})
     segment(b, tip_a + d * kL * s, tip_n - d * kL * s, 90.0, (d - 3.0) * kL * s, 6e-6, 500.0);
   const CrackAnalysis r = analyze_crack(b, plate(), options());
-  ASSERT_TRUE(r.branching_length.has_value());
-  EXPECT_NEAR(*r.branching_length, a1, 1.5 * kL);
-  ASSERT_EQ(r.branches.size(), 2u);
-  EXPECT_NEAR(r.branches[0].angle_deg, 0.0, 3.0);
-  EXPECT_NEAR(r.branches[1].angle_deg, -45.0, 3.0);
+  expect_bifurcation(r, a1, 1.5 * kL, 0.0, -45.0, 3.0);
+  EXPECT_EQ(r.branches.size(), 2u);
 }
 
 // A loop as the graded plate's runs close it (docs/validation/fgm-plate.md): 6 modules beyond
@@ -302,12 +309,7 @@ TEST(CrackAnalysis, LargeLoopIsTwoBranchesThatMeetAgain) {
   const auto [a3, n3] = segment(b, a2, n2, 0.0, 40 * kL, t2, 500.0);
   segment(b, a3, n3, 90.0, 26 * kL, t2 + 40 * kL / 500.0, 500.0);
   const CrackAnalysis r = analyze_crack(b, plate(), options());
-  ASSERT_TRUE(r.branching_length.has_value());
-  EXPECT_NEAR(*r.branching_length, a1, 1.5 * kL);
-  ASSERT_GE(r.branches.size(), 2u);
-  EXPECT_EQ(r.branches[1].level, 1);
-  EXPECT_NEAR(r.branches[0].angle_deg, 0.0, 3.0);
-  EXPECT_NEAR(r.branches[1].angle_deg, -90.0, 3.0);
+  expect_bifurcation(r, a1, 1.5 * kL, 0.0, -90.0, 3.0);
 }
 
 TEST(CrackAnalysis, BandAroundAnIslandIsOneCrack) {
