@@ -100,10 +100,15 @@ if [ -s "$T/kill/checkpoint/state.ckpt" ] && "$LDEM" resume "$T/kill" --no-plot 
 # Bad checkpoints are refused with their reason, and nothing is changed.
 timeout -s INT --preserve-status 0.3 "$LDEM" run "$T/case.toml" --out "$T/bad" --no-plot >/dev/null 2>&1
 cp "$T/bad/checkpoint/state.ckpt" "$T/good.ckpt"
+# Every file of a folder with its checksum (the checkpoint aside): what a refused resume must
+# leave as it was.
+fingerprint() { (cd "$1" && find . -path ./checkpoint -prune -o -type f -print0 | sort -z | xargs -0 md5sum); }
 expect_resume_error() {
+  local before
+  before=$(fingerprint "$T/bad")
   "$LDEM" resume "$T/bad" --no-plot >/dev/null 2>"$T/stderr"
   local rc=$?
-  if [ $rc -eq 2 ] && grep -q -- "$1" "$T/stderr"; then ok; else bad "resume with $2: rc $rc, $(cat "$T/stderr")"; fi
+  if [ $rc -eq 2 ] && grep -q -- "$1" "$T/stderr" && [ "$(fingerprint "$T/bad")" = "$before" ]; then ok; else bad "resume with $2: rc $rc, $(cat "$T/stderr")"; fi
   cp "$T/good.ckpt" "$T/bad/checkpoint/state.ckpt"
 }
 head -c 1000 "$T/good.ckpt" >"$T/bad/checkpoint/state.ckpt"
@@ -114,6 +119,24 @@ printf '\x07' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>
 expect_resume_error "format version 7" "another format version"
 printf '\x03' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
 expect_resume_error "format version 3, written by an older ldem" "an older format version"
+# A checkpoint must belong to the folder it is in, and the folder must hold what it recorded;
+# each check comes before the first change, so that putting things back makes the run whole.
+sed 's/^title = .*/title = "another case"/' "$T/case.toml" >"$T/other.toml"
+timeout -s INT --preserve-status 0.3 "$LDEM" run "$T/other.toml" --out "$T/other" --no-plot >/dev/null 2>&1
+cp "$T/other/checkpoint/state.ckpt" "$T/bad/checkpoint/state.ckpt"
+expect_resume_error "case.resolved.toml: changed since the checkpoint was written (or the checkpoint is another run's)" "another case's checkpoint"
+timeout -s INT --preserve-status 0.8 "$LDEM" run "$T/case.toml" --out "$T/later" --no-plot >/dev/null 2>&1
+cp "$T/later/checkpoint/state.ckpt" "$T/bad/checkpoint/state.ckpt"
+expect_resume_error "energy.csv: does not begin with the [0-9]* bytes the checkpoint" "a later checkpoint of the same case"
+mv "$T/bad/lattice_000000.vtu" "$T/snapshot.vtu"
+expect_resume_error "lattice_000000.vtu: missing (the checkpoint recorded" "a deleted snapshot"
+mv "$T/snapshot.vtu" "$T/bad/lattice_000000.vtu"
+cp "$T/bad/case.resolved.toml" "$T/resolved.toml"
+echo "# edited" >>"$T/bad/case.resolved.toml"
+expect_resume_error "case.resolved.toml: changed since the checkpoint" "an edited case.resolved.toml"
+cp "$T/resolved.toml" "$T/bad/case.resolved.toml"
+if "$LDEM" resume "$T/bad" --no-plot >/dev/null 2>"$T/stderr" && same_as_ref "$T/bad"; then ok; else bad "resume once all is put back: $(cat "$T/stderr")"; fi
+cp "$T/good.ckpt" "$T/bad/checkpoint/state.ckpt"
 echo "# changed" >>"$T/case.toml"
 expect_resume_error "the case file changed since the checkpoint" "a changed case"
 "$LDEM" resume "$T/nowhere" >/dev/null 2>"$T/stderr"
@@ -185,6 +208,30 @@ if "$LDEM" ensemble "$FGM" --runs 2 --no-plot --out "$T/ens" >/dev/null 2>"$T/st
 "$LDEM" ensemble "$FGM" "$T/nope.toml" --runs 2 --out "$T/ens_bad" >/dev/null 2>"$T/stderr"
 rc=$?
 [ $rc -eq 2 ] && [ ! -e "$T/ens_bad" ] && grep -q "nope.toml: cannot read the case file" "$T/stderr" && ok || bad "ensemble with a bad case: rc $rc, $(cat "$T/stderr")"
+
+# A full disk: the output folder on a small tmpfs (root only; skipped otherwise). The run
+# stops with exit 2 and says which file failed; no file under its final name is cut short:
+# every snapshot has the size of the first, a log under its final name or kept as .part ends
+# with a whole row, and a snapshot that failed leaves no .part behind.
+if [ "$(id -u)" -eq 0 ] && mkdir -p "$T/full" && mount -t tmpfs -o size=400k tmpfs "$T/full" 2>/dev/null; then
+  "$LDEM" run "$GOOD" --out "$T/full/vtu" --no-plot >/dev/null 2>"$T/stderr"
+  rc=$?
+  whole=1
+  first=$(stat -c %s "$T/full/vtu/lattice_000000.vtu" 2>/dev/null || echo 0)
+  for f in "$T/full/vtu"/lattice_*.vtu; do [ "$(stat -c %s "$f")" = "$first" ] || whole=0; done
+  ls "$T/full/vtu"/*.vtu.part >/dev/null 2>&1 && whole=0
+  for f in "$T/full/vtu"/*.csv "$T/full/vtu"/*.csv.part; do [ -e "$f" ] && [ "$(tail -c 1 "$f" | od -An -c | tr -d ' ')" != '\n' ] && whole=0; done
+  [ $rc -eq 2 ] && grep -q "write failed (No space left on device)" "$T/stderr" && [ $whole = 1 ] && ok || bad "full disk, snapshots: rc $rc, $(cat "$T/stderr"), $(ls -l "$T/full/vtu")"
+  umount "$T/full"
+  mount -t tmpfs -o size=48k tmpfs "$T/full"
+  sed 's/^energy_every = 50/energy_every = 5\nvtu = false/' "$GOOD" >"$T/novtu.toml"
+  "$LDEM" run "$T/novtu.toml" --out "$T/full/logs" --no-plot >/dev/null 2>"$T/stderr"
+  rc=$?
+  whole=1
+  for f in "$T/full/logs"/*.csv "$T/full/logs"/*.csv.part; do [ -e "$f" ] && [ "$(tail -c 1 "$f" | od -An -c | tr -d ' ')" != '\n' ] && whole=0; done
+  [ $rc -eq 2 ] && grep -q "whole rows, are kept in .*\.csv\.part" "$T/stderr" && [ $whole = 1 ] && [ ! -e "$T/full/logs/summary.json" ] && ok || bad "full disk, logs: rc $rc, $(cat "$T/stderr"), $(ls -l "$T/full/logs")"
+  umount "$T/full"
+fi
 
 # The lowest eigenfrequencies of the tutorial plate: a table with a positive frequency and the
 # comparison with the step; a count below 1 or not below the free DOF is refused.

@@ -250,7 +250,9 @@ int run_command(const std::string& path, const RunOptions& o) {
       if (e.path().extension() == ".vtu" && e.path().filename().string().rfind("lattice_", 0) == 0)
         fs::remove(e.path());
     fs::remove_all(o.out_dir + "/checkpoint", ec);
-    write_file(dir + "case.resolved.toml", resolved_case_toml(c, body->numbers()));
+    const std::string resolved = resolved_case_toml(c, body->numbers());
+    write_file(dir + "case.resolved.toml", resolved);
+    st.resolved_hash = checkpoint::fnv1a(resolved.data(), resolved.size());
     const std::string text = read_all(path);
     st.case_hash = checkpoint::fnv1a(text.data(), text.size());
     if (process_count() > 1)
@@ -294,6 +296,7 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
           throw InputError(fmt::format("{}: the case file changed since the checkpoint in {}; "
                                        "a resume needs it unchanged (start a new run instead)",
                                        st.case_path, out_dir));
+        check_folder_matches(out_dir, st); // before anything in the folder changes
       }))
     return 2;
   std::string case_path = st.case_path;

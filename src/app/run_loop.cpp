@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fmt/format.h>
 #include <omp.h>
+#include <optional>
 #include <unistd.h>
 
 namespace ldem {
@@ -82,6 +83,11 @@ std::string run_state_bytes(const RunState& st) {
   put(meta, st.max_balance);
   for (std::uint64_t l : st.lengths)
     put(meta, l);
+  put(meta, st.resolved_hash);
+  for (std::uint64_t h : st.log_hashes)
+    put(meta, h);
+  for (std::uint64_t b : st.snapshot_bytes)
+    put(meta, b);
   return meta;
 }
 
@@ -104,7 +110,44 @@ RunState parse_run_state(const std::string& meta) {
   get(meta, pos, st.max_balance);
   for (std::uint64_t& l : st.lengths)
     get(meta, pos, l);
+  get(meta, pos, st.resolved_hash);
+  for (std::uint64_t& h : st.log_hashes)
+    get(meta, pos, h);
+  st.snapshot_bytes.resize(st.snapshots.size());
+  for (std::uint64_t& b : st.snapshot_bytes)
+    get(meta, pos, b);
   return st;
+}
+
+void check_folder_matches(const std::string& out_dir, const RunState& st) {
+  const std::string dir = out_dir + "/";
+  const std::string resolved = dir + "case.resolved.toml";
+  const std::optional<std::uint64_t> rh =
+      prefix_hash(resolved, fs::exists(resolved) ? fs::file_size(resolved) : 0);
+  if (!fs::exists(resolved) || rh != st.resolved_hash)
+    throw InputError(fmt::format(
+        "{}: {} since the checkpoint was written (or the checkpoint is another run's); a resume "
+        "needs the folder as its run left it",
+        resolved, fs::exists(resolved) ? "changed" : "missing"));
+  for (std::size_t i = 0; i < 3; ++i) {
+    const std::string log = log_in_progress(dir + kLogs[i]);
+    if (prefix_hash(log, st.lengths[i]) != st.log_hashes[i])
+      throw InputError(fmt::format(
+          "{}: does not begin with the {} bytes the checkpoint in {}checkpoint counted (the "
+          "checkpoint is another run's or a later one, or the file was changed); nothing was "
+          "changed",
+          log, st.lengths[i], dir));
+  }
+  for (std::size_t k = 0; k < st.snapshots.size(); ++k) {
+    const std::string snap = dir + st.snapshots[k].second;
+    std::error_code ec;
+    const std::uint64_t bytes = fs::file_size(snap, ec);
+    if (ec || bytes != st.snapshot_bytes[k])
+      throw InputError(fmt::format("{}: {} (the checkpoint recorded {} bytes); a resume needs "
+                                   "every snapshot the run wrote; nothing was changed",
+                                   snap, ec ? "missing" : fmt::format("{} bytes", bytes),
+                                   st.snapshot_bytes[k]));
+  }
 }
 
 int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState st, bool fresh,
@@ -122,11 +165,10 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   auto open = [&](const char* name, int i) -> std::unique_ptr<OutputFile> {
     if (!writes)
       return nullptr;
-    return fresh ? std::make_unique<OutputFile>(dir + name)
+    return fresh ? std::make_unique<OutputFile>(dir + name, OutputFile::Kind::Log)
                  : std::make_unique<OutputFile>(dir + name, st.lengths[i]);
   };
-  const auto energy = open("energy.csv", 0), events = open("events.csv", 1),
-             probes = open("probes.csv", 2);
+  const auto energy = open(kLogs[0], 0), events = open(kLogs[1], 1), probes = open(kLogs[2], 2);
   if (fresh && writes) {
     energy->write("time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,"
                   "balance_error\n");
@@ -178,6 +220,12 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       st.lengths[0] = energy->size();
       st.lengths[1] = events->size();
       st.lengths[2] = probes->size();
+      st.log_hashes[0] = energy->hash();
+      st.log_hashes[1] = events->hash();
+      st.log_hashes[2] = probes->hash();
+      st.snapshot_bytes.clear();
+      for (const auto& snap : st.snapshots)
+        st.snapshot_bytes.push_back(fs::file_size(dir + snap.second));
       meta = run_state_bytes(st);
       fs::create_directories(dir + "checkpoint");
     }

@@ -23,7 +23,21 @@ struct RunState {
   std::uint64_t n_soft = 0, n_broken = 0;
   double max_balance = 0.0;
   std::uint64_t lengths[3] = {0, 0, 0}; // bytes of energy.csv, events.csv, probes.csv
+  // What proves a checkpoint belongs to the folder it is in: the hash of case.resolved.toml as
+  // the run wrote it, of the logs' first `lengths` bytes, and each snapshot's size.
+  std::uint64_t resolved_hash = 0;
+  std::uint64_t log_hashes[3] = {0, 0, 0};
+  std::vector<std::uint64_t> snapshot_bytes;
 };
+
+// The logs of a run, in the order of RunState::lengths.
+inline constexpr const char* kLogs[3] = {"energy.csv", "events.csv", "probes.csv"};
+
+// Throws InputError naming the file unless the folder `out_dir` holds what the checkpoint's run
+// state `st` recorded: case.resolved.toml unchanged, each log beginning with the bytes the
+// checkpoint counted, each snapshot listed with its size. `ldem resume` calls it before it
+// changes anything in the folder.
+void check_folder_matches(const std::string& out_dir, const RunState& st);
 
 // The run's state as a checkpoint's meta (io/checkpoint.hpp), and back.
 std::string run_state_bytes(const RunState& st);

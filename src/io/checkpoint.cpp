@@ -15,8 +15,7 @@ std::string get_str(const std::string& in, std::size_t& pos) {
   return s;
 }
 
-std::uint64_t fnv1a(const char* p, std::size_t n) {
-  std::uint64_t h = 0xcbf29ce484222325ull;
+std::uint64_t fnv1a(const char* p, std::size_t n, std::uint64_t h) {
   for (std::size_t i = 0; i < n; ++i)
     h = (h ^ static_cast<unsigned char>(p[i])) * 0x100000001b3ull;
   return h;

@@ -25,7 +25,7 @@
 namespace ldem::checkpoint {
 
 inline constexpr char kMagic[8] = {'L', 'D', 'E', 'M', 'C', 'K', 'P', 'T'};
-inline constexpr std::uint32_t kVersion = 4;
+inline constexpr std::uint32_t kVersion = 5;
 inline constexpr std::uint64_t kHeaderBytes = 8 + 4 + 3 * 8;
 
 template <class T> void put(std::string& out, const T& v) {
@@ -43,7 +43,9 @@ template <class T> void get(const std::string& in, std::size_t& pos, T& v) {
 }
 std::string get_str(const std::string& in, std::size_t& pos);
 
-std::uint64_t fnv1a(const char* p, std::size_t n);
+inline constexpr std::uint64_t kFnvStart = 0xcbf29ce484222325ull;
+// FNV-1a of n bytes, continuing from the hash `h` of the bytes before them.
+std::uint64_t fnv1a(const char* p, std::size_t n, std::uint64_t h = kFnvStart);
 // The checksum's term of the array word at `place` (counted in doubles from the arrays' start).
 std::uint64_t word_hash(std::uint64_t place, double value);
 

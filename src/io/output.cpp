@@ -1,7 +1,10 @@
 #include "io/output.hpp"
 
+#include "io/checkpoint.hpp"
+
 #include "util/error.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdint>
 #include <cstring>
@@ -10,14 +13,15 @@
 
 namespace ldem {
 
-OutputFile::OutputFile(std::string path) : path_(std::move(path)), part_(path_ + ".part") {
+OutputFile::OutputFile(std::string path, Kind kind)
+    : path_(std::move(path)), part_(path_ + ".part"), kind_(kind), hash_(checkpoint::kFnvStart) {
   f_ = std::fopen(part_.c_str(), "wb");
   if (!f_)
     throw InputError(fmt::format("{}: cannot write ({})", part_, std::strerror(errno)));
 }
 
 OutputFile::OutputFile(std::string path, std::uint64_t length)
-    : path_(std::move(path)), part_(path_ + ".part") {
+    : path_(std::move(path)), part_(path_ + ".part"), kind_(Kind::Log) {
   std::error_code ec;
   if (!std::filesystem::exists(part_, ec))
     std::filesystem::rename(path_, part_, ec);
@@ -26,15 +30,76 @@ OutputFile::OutputFile(std::string path, std::uint64_t length)
                                  "checkpoint recorded",
                                  path_, length));
   std::filesystem::resize_file(part_, length);
+  hash_ = prefix_hash(part_, length).value_or(0);
   f_ = std::fopen(part_.c_str(), "ab");
   if (!f_)
     throw InputError(fmt::format("{}: cannot write ({})", part_, std::strerror(errno)));
-  size_ = length;
+  size_ = flushed_ = length;
+}
+
+std::string log_in_progress(const std::string& path) {
+  std::error_code ec;
+  return std::filesystem::exists(path + ".part", ec) ? path + ".part" : path;
+}
+
+std::optional<std::uint64_t> prefix_hash(const std::string& path, std::uint64_t length) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f)
+    return std::nullopt;
+  std::uint64_t h = checkpoint::kFnvStart;
+  std::vector<char> buf(1 << 16);
+  while (length > 0) {
+    const std::size_t want = static_cast<std::size_t>(std::min<std::uint64_t>(length, buf.size()));
+    if (std::fread(buf.data(), 1, want, f) != want) {
+      std::fclose(f);
+      return std::nullopt;
+    }
+    h = checkpoint::fnv1a(buf.data(), want, h);
+    length -= want;
+  }
+  std::fclose(f);
+  return h;
 }
 
 OutputFile::~OutputFile() {
-  if (f_)
+  if (!f_)
+    return;
+  if (kind_ == Kind::Whole) { // dropped before it was complete
+    std::fclose(f_);
+    std::remove(part_.c_str());
+    return;
+  }
+  try {
     commit();
+  } catch (const InputError&) {
+    // Cut back and kept under its temporary name by fail(); the error that ends the run is
+    // already on its way.
+  }
+}
+
+void OutputFile::fail(int err) {
+  if (f_)
+    std::fclose(f_); // (its own error is the same one)
+  f_ = nullptr;
+  std::error_code ec;
+  if (kind_ == Kind::Whole) {
+    std::filesystem::remove(part_, ec);
+    throw InputError(fmt::format("{}: write failed ({}); not written (the disk full? free space "
+                                 "and run again)",
+                                 path_, std::strerror(err)));
+  }
+  // A log keeps the writes that reached the disk whole.
+  const std::uint64_t on_disk = std::filesystem::file_size(part_, ec);
+  std::uint64_t keep = flushed_;
+  for (std::uint64_t end : ends_)
+    if (!ec && end <= on_disk)
+      keep = end;
+  std::filesystem::resize_file(part_, keep, ec);
+  size_ = keep;
+  throw InputError(fmt::format("{}: write failed ({}); its first {} bytes, whole rows, are kept "
+                               "in {} (the disk full? free space, then `ldem resume` the folder "
+                               "if it has a checkpoint)",
+                               path_, std::strerror(err), keep, part_));
 }
 
 void OutputFile::write(const std::string& text) {
@@ -42,21 +107,38 @@ void OutputFile::write(const std::string& text) {
 }
 
 void OutputFile::write(const char* data, std::size_t bytes) {
-  size_ += bytes;
+  if (!f_)
+    throw InputError(fmt::format("{}: written after it was closed", path_));
   if (std::fwrite(data, 1, bytes, f_) != bytes)
-    throw InputError(fmt::format("{}: write failed ({})", part_, std::strerror(errno)));
+    fail(errno);
+  size_ += bytes;
+  if (kind_ == Kind::Log) {
+    ends_.push_back(size_);
+    hash_ = checkpoint::fnv1a(data, bytes, hash_);
+  }
 }
 
 void OutputFile::flush() {
-  std::fflush(f_);
+  if (!f_)
+    return;
+  if (std::fflush(f_) != 0)
+    fail(errno);
+  flushed_ = size_;
+  ends_.clear();
 }
 
 void OutputFile::commit() {
   if (!f_)
     return;
-  std::fclose(f_);
+  if (std::fflush(f_) != 0)
+    fail(errno);
+  std::FILE* f = f_;
   f_ = nullptr;
-  std::rename(part_.c_str(), path_.c_str());
+  if (std::fclose(f) != 0)
+    fail(errno);
+  if (std::rename(part_.c_str(), path_.c_str()) != 0)
+    throw InputError(
+        fmt::format("{}: cannot rename to {} ({})", part_, path_, std::strerror(errno)));
 }
 
 void write_file(const std::string& path, const std::string& text) {

@@ -6,23 +6,33 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace ldem {
 
-// A file written to "<path>.part" and renamed to <path> by commit() (or by the destructor,
-// so that what was written survives an early stop).
+// A file written to "<path>.part" and renamed to <path> by commit() once complete. A file whose
+// write fails (a full disk, say) is never renamed: a whole file's part is removed, a log's is
+// cut back to its last complete write (whole rows) and kept for `ldem resume`, and the write
+// throws InputError naming it. A whole file dropped without commit() (an error while it was
+// being written) is removed; a log is committed by the destructor, so that what was written
+// survives an early stop.
 class OutputFile {
 public:
-  explicit OutputFile(std::string path);
-  // Continues a file of an interrupted run: its temporary or final version, cut back to
+  enum class Kind { Whole, Log };
+  explicit OutputFile(std::string path, Kind kind = Kind::Whole);
+  // Continues a log of an interrupted run: its temporary or final version, cut back to
   // `length` bytes (what a checkpoint recorded), then appended to.
   OutputFile(std::string path, std::uint64_t length);
   std::uint64_t size() const { return size_; }
+  // A log's FNV-1a hash of every byte it holds (io/checkpoint.hpp): a checkpoint records it, so
+  // that a resume knows the file is the one it continues.
+  std::uint64_t hash() const { return hash_; }
   ~OutputFile();
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
+  // Each call is a unit (a log's whole rows): a failure keeps the calls that reached the disk.
   void write(const std::string& text);
   void write(const char* data, std::size_t bytes);
   void flush();
@@ -30,13 +40,24 @@ public:
   const std::string& path() const { return path_; }
 
 private:
+  [[noreturn]] void fail(int err);
   std::string path_, part_;
+  Kind kind_ = Kind::Whole;
   std::FILE* f_ = nullptr;
   std::uint64_t size_ = 0;
+  std::uint64_t hash_ = 0;
+  std::uint64_t flushed_ = 0;        // bytes known to be on disk (the last successful flush)
+  std::vector<std::uint64_t> ends_;  // where the writes since then end
 };
 
 // Writes a whole file at once (temporary name, then rename).
 void write_file(const std::string& path, const std::string& text);
+
+// The file a resumed run continues for the log `path`: its temporary version if there is one
+// (a run stopped by an error), else the file itself.
+std::string log_in_progress(const std::string& path);
+// The FNV-1a hash of the first `length` bytes of `path`; nullopt when it is shorter or unread.
+std::optional<std::uint64_t> prefix_hash(const std::string& path, std::uint64_t length);
 
 // One VTK XML unstructured grid of the lattice at the current state: nodes at their reference
 // positions with displacement and velocity, bars as lines with state (0 intact, 1 softening,

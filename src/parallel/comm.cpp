@@ -307,7 +307,12 @@ SharedFile::SharedFile(const std::string& path) : path_(path), part_(path + ".pa
 }
 
 SharedFile::~SharedFile() {
+  // Dropped before commit() (an error while it was written): not a file of the run.
+  if (!handle_)
+    return;
   close();
+  if (!mpi_ || process_rank() == 0)
+    std::remove(part_.c_str());
 }
 
 bool SharedFile::close() {
@@ -353,9 +358,14 @@ void SharedFile::commit() {
   if (!handle_)
     return;
   const bool was_mpi = mpi_;
-  if (!close())
-    throw InputError(was_mpi ? fmt::format("{}: write failed", part_)
-                             : fmt::format("{}: write failed ({})", part_, std::strerror(errno)));
+  if (!close()) {
+    const int err = errno;
+    if (!was_mpi || process_rank() == 0)
+      std::remove(part_.c_str()); // never renamed: the file before it, if any, stays
+    throw InputError(was_mpi ? fmt::format("{}: write failed; not written", path_)
+                             : fmt::format("{}: write failed ({}); not written", path_,
+                                           std::strerror(err)));
+  }
   if ((!was_mpi || process_rank() == 0) && std::rename(part_.c_str(), path_.c_str()) != 0)
     throw InputError(
         fmt::format("{}: cannot rename to {} ({})", part_, path_, std::strerror(errno)));
