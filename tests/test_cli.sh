@@ -40,6 +40,20 @@ expect_error low_kr "K_r = e_r / e_p < 1" "$(variant kr 's/^Gf = 10.0/Gf = 0.5/'
 expect_error unstable_dt "above the stable limit" "$(variant dt 's/^safety = .*//; s/^damping = 200.0/damping = 200.0\nrule = "dt"\ndt = 1e-5/')"
 expect_error empty_set 'node set "top" (box' "$(variant empty 's/^face = "z+"/box_min = [1, 1, 1]\nbox_max = [2, 2, 2]/')"
 expect_error precrack_outside "crosses no bar: it lies outside the body" "$(variant outside 's/^origin = \[-0.0001, -0.001, 0.05125\]/origin = [1.0, -0.001, 0.05125]/')"
+expect_error device "/dev/zero: expected the case file as a regular file; got a device" /dev/zero
+expect_error directory "expected the case file as a regular file; got a directory" "$SRC/cases"
+expect_error threads "--threads: expected a whole number from 0 to [0-9]* (0: all; at most 4 times this machine's" "$GOOD" --threads 100000
+expect_error checkpoint_nan "--checkpoint-seconds: expected a finite number of at least 0; got 'nan'" "$GOOD" --checkpoint-seconds nan
+# Usage errors exit 2 with a readable message, whatever CLI11 would return.
+for args in "bogus" "run" "run $GOOD --out" "bench --modules 0 1 1" "resume"; do
+  # shellcheck disable=SC2086
+  "$LDEM" $args >/dev/null 2>"$T/stderr"
+  rc=$?
+  [ $rc -eq 2 ] && ! grep -q "[0-9]\{20\}" "$T/stderr" && ok || bad "usage error 'ldem $args': rc $rc, $(cat "$T/stderr")"
+done
+"$LDEM" run "$GOOD" --out "" --no-plot >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q -- "--out: expected a folder; got an empty name" "$T/stderr" && [ ! -e results/notched_plate ] && ok || bad "--out '': rc $rc, $(cat "$T/stderr")"
 "$LDEM" run "$GOOD" --out /proc/ldem-test/out --no-plot >/dev/null 2>"$T/stderr"
 rc=$?
 if [ $rc -eq 2 ] && grep -q "cannot create the folder" "$T/stderr" && [ ! -e /proc/ldem-test ]; then ok; else bad "unwritable folder: rc $rc, $(cat "$T/stderr")"; fi
@@ -80,6 +94,15 @@ for spec in "INT 0.25 130 1" "INT 0.5 130 2" "TERM 0.35 143 1"; do
   grep -q '"interrupted": true' "$d/summary.json" || bad "SIG$sig: summary not marked interrupted"
   if "$LDEM" resume "$d" --threads "$threads" --no-plot >/dev/null 2>"$T/stderr" && same_as_ref "$d"; then ok; else bad "resume after SIG$sig at $after s: $(cat "$T/stderr")"; fi
 done
+# A resume keeps the options of the run it continues: a run started with --no-plot and resumed
+# without it makes no pictures either. summary.json names the case by one path however it was
+# typed.
+timeout -s INT --preserve-status 0.3 "$LDEM" run "$T/case.toml" --out "$T/noplot" --no-plot >/dev/null 2>&1
+if "$LDEM" resume "$T/noplot" >/dev/null 2>"$T/stderr" && [ ! -e "$T/noplot/crack.png" ] && [ ! -e "$T/noplot/energy.png" ] &&
+  same_as_ref "$T/noplot"; then ok; else bad "resume kept --no-plot: $(cat "$T/stderr"), $(ls "$T/noplot")"; fi
+mkdir -p "$T/sub"
+"$LDEM" run "$T/sub/../case.toml" --out "$T/typed" --no-plot >/dev/null 2>&1
+grep -q "\"case\": \"$(realpath "$T/case.toml")\"" "$T/typed/summary.json" && ok || bad "summary.json's case as typed: $(grep '"case"' "$T/typed/summary.json")"
 # A hard kill (no chance to clean up) after periodic checkpoints: resume from the last one.
 cp "$T/case.toml" "$T/ckpt.toml"
 "$LDEM" run "$T/ckpt.toml" --out "$T/ref2" --no-plot >/dev/null 2>&1
@@ -213,24 +236,24 @@ rc=$?
 # stops with exit 2 and says which file failed; no file under its final name is cut short:
 # every snapshot has the size of the first, a log under its final name or kept as .part ends
 # with a whole row, and a snapshot that failed leaves no .part behind.
-if [ "$(id -u)" -eq 0 ] && mkdir -p "$T/full" && mount -t tmpfs -o size=400k tmpfs "$T/full" 2>/dev/null; then
-  "$LDEM" run "$GOOD" --out "$T/full/vtu" --no-plot >/dev/null 2>"$T/stderr"
+if [ "$(id -u)" -eq 0 ] && mkdir -p "$T/tmpfs" && mount -t tmpfs -o size=400k tmpfs "$T/tmpfs" 2>/dev/null; then
+  "$LDEM" run "$GOOD" --out "$T/tmpfs/vtu" --no-plot >/dev/null 2>"$T/stderr"
   rc=$?
   whole=1
-  first=$(stat -c %s "$T/full/vtu/lattice_000000.vtu" 2>/dev/null || echo 0)
-  for f in "$T/full/vtu"/lattice_*.vtu; do [ "$(stat -c %s "$f")" = "$first" ] || whole=0; done
-  ls "$T/full/vtu"/*.vtu.part >/dev/null 2>&1 && whole=0
-  for f in "$T/full/vtu"/*.csv "$T/full/vtu"/*.csv.part; do [ -e "$f" ] && [ "$(tail -c 1 "$f" | od -An -c | tr -d ' ')" != '\n' ] && whole=0; done
-  [ $rc -eq 2 ] && grep -q "write failed (No space left on device)" "$T/stderr" && [ $whole = 1 ] && ok || bad "full disk, snapshots: rc $rc, $(cat "$T/stderr"), $(ls -l "$T/full/vtu")"
-  umount "$T/full"
-  mount -t tmpfs -o size=48k tmpfs "$T/full"
+  first=$(stat -c %s "$T/tmpfs/vtu/lattice_000000.vtu" 2>/dev/null || echo 0)
+  for f in "$T/tmpfs/vtu"/lattice_*.vtu; do [ "$(stat -c %s "$f")" = "$first" ] || whole=0; done
+  ls "$T/tmpfs/vtu"/*.vtu.part >/dev/null 2>&1 && whole=0
+  for f in "$T/tmpfs/vtu"/*.csv "$T/tmpfs/vtu"/*.csv.part; do [ -e "$f" ] && [ "$(tail -c 1 "$f" | od -An -c | tr -d ' ')" != '\n' ] && whole=0; done
+  [ $rc -eq 2 ] && grep -q "write failed (No space left on device)" "$T/stderr" && [ $whole = 1 ] && ok || bad "full disk, snapshots: rc $rc, $(cat "$T/stderr"), $(ls -l "$T/tmpfs/vtu")"
+  umount "$T/tmpfs"
+  mount -t tmpfs -o size=48k tmpfs "$T/tmpfs"
   sed 's/^energy_every = 50/energy_every = 5\nvtu = false/' "$GOOD" >"$T/novtu.toml"
-  "$LDEM" run "$T/novtu.toml" --out "$T/full/logs" --no-plot >/dev/null 2>"$T/stderr"
+  "$LDEM" run "$T/novtu.toml" --out "$T/tmpfs/logs" --no-plot >/dev/null 2>"$T/stderr"
   rc=$?
   whole=1
-  for f in "$T/full/logs"/*.csv "$T/full/logs"/*.csv.part; do [ -e "$f" ] && [ "$(tail -c 1 "$f" | od -An -c | tr -d ' ')" != '\n' ] && whole=0; done
-  [ $rc -eq 2 ] && grep -q "whole rows, are kept in .*\.csv\.part" "$T/stderr" && [ $whole = 1 ] && [ ! -e "$T/full/logs/summary.json" ] && ok || bad "full disk, logs: rc $rc, $(cat "$T/stderr"), $(ls -l "$T/full/logs")"
-  umount "$T/full"
+  for f in "$T/tmpfs/logs"/*.csv "$T/tmpfs/logs"/*.csv.part; do [ -e "$f" ] && [ "$(tail -c 1 "$f" | od -An -c | tr -d ' ')" != '\n' ] && whole=0; done
+  [ $rc -eq 2 ] && grep -q "whole rows, are kept in .*\.csv\.part" "$T/stderr" && [ $whole = 1 ] && [ ! -e "$T/tmpfs/logs/summary.json" ] && ok || bad "full disk, logs: rc $rc, $(cat "$T/stderr"), $(ls -l "$T/tmpfs/logs")"
+  umount "$T/tmpfs"
 fi
 
 # The lowest eigenfrequencies of the tutorial plate: a table with a positive frequency and the

@@ -2,6 +2,7 @@
 
 #include "io/output.hpp"
 #include "util/error.hpp"
+#include "util/text_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,13 +13,11 @@
 namespace ldem {
 
 std::string read_text(const std::string& path, const std::string& what) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in)
-    throw InputError(fmt::format("{}: cannot read {} (is the folder an ldem output folder?)",
-                                 path, what));
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
+  try {
+    return read_text_file(path, what);
+  } catch (const InputError& e) {
+    throw InputError(std::string(e.what()) + " (is the folder an ldem output folder?)");
+  }
 }
 
 double resolved_number(const toml::node_view<const toml::node>& v, const std::string& file,

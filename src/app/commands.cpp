@@ -9,6 +9,7 @@
 #include "parallel/comm.hpp"
 #include "solver/modes.hpp"
 #include "util/error.hpp"
+#include "util/text_file.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -164,12 +165,7 @@ void prepare_output(const std::string& dir, bool force, bool create = true) {
 }
 
 std::string read_all(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in)
-    throw InputError(fmt::format("{}: cannot read", path));
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
+  return read_text_file(path, "the case file");
 }
 
 // Runs `setup` on every process and agrees on its outcome: when some process threw
@@ -239,7 +235,13 @@ int run_command(const std::string& path, const RunOptions& o) {
     return 2;
   const std::string dir = o.out_dir + "/";
   RunState st;
-  st.case_path = fs::absolute(path).string();
+  // The case as one path, however it was typed (./a/../case.toml, a link).
+  st.case_path = fs::weakly_canonical(fs::absolute(path)).string();
+  st.plots = o.plots;
+  st.checkpoint_every = o.checkpoint_every >= 0 ? static_cast<std::uint64_t>(o.checkpoint_every)
+                                                : c.spec.output.checkpoint_every;
+  st.checkpoint_seconds =
+      o.checkpoint_seconds >= 0 ? o.checkpoint_seconds : c.spec.output.checkpoint_seconds;
   if (writes) {
     for (const std::string& w : c.warnings)
       fmt::print(stderr, "ldem: warning: {}\n", w);
@@ -261,11 +263,8 @@ int run_command(const std::string& path, const RunOptions& o) {
   return guarded_loop([&] {
     if (body->numbers().per_bar)
       body->write_fields(dir + "fields.csv");
-    return run_loop(c, *body, o.out_dir, st, true, o.plots,
-                    o.checkpoint_every >= 0 ? static_cast<std::uint64_t>(o.checkpoint_every)
-                                            : c.spec.output.checkpoint_every,
-                    o.checkpoint_seconds >= 0 ? o.checkpoint_seconds
-                                              : c.spec.output.checkpoint_seconds);
+    return run_loop(c, *body, o.out_dir, st, true, st.plots, st.checkpoint_every,
+                    st.checkpoint_seconds);
   });
 }
 
@@ -313,8 +312,9 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
     fmt::print(stderr, "ldem: resuming {} at step {} (t = {:.4g} s)\n", st.case_path, st.next,
                body->time());
   return guarded_loop([&] {
-    return run_loop(c, *body, out_dir, st, false, plots, c.spec.output.checkpoint_every,
-                    c.spec.output.checkpoint_seconds);
+    // The run's own options; --no-plot here turns its plots off too.
+    return run_loop(c, *body, out_dir, st, false, plots && st.plots, st.checkpoint_every,
+                    st.checkpoint_seconds);
   });
 }
 

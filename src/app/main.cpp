@@ -9,15 +9,60 @@
 #include "util/error.hpp"
 
 #include <CLI/CLI.hpp>
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
 #include <fmt/format.h>
 #include <iostream>
+#include <omp.h>
 
 namespace {
 constexpr const char* kVersion = "0.1.0";
+
+// A whole number from lo to hi; the message says so in words (`note`: what the range means).
+CLI::Validator whole_in(long long lo, long long hi, const std::string& note = "") {
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        long long v = 0;
+        const char* end = text.data() + text.size();
+        const auto [p, ec] = std::from_chars(text.data(), end, v);
+        if (ec == std::errc() && p == end && v >= lo && v <= hi)
+          return "";
+        return fmt::format("expected a whole number from {} to {}{}; got '{}'", lo, hi, note,
+                           text);
+      },
+      fmt::format("{} to {}", lo, hi));
+}
+
+// A finite number of at least lo (not nan, not inf).
+CLI::Validator finite_at_least(double lo) {
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (!text.empty() && end == text.c_str() + text.size() && std::isfinite(v) && v >= lo)
+          return "";
+        return fmt::format("expected a finite number of at least {}; got '{}'", lo, text);
+      },
+      fmt::format(">= {}", lo));
+}
+
+// A folder name that is not empty.
+const CLI::Validator kNonEmpty(
+    [](std::string& text) -> std::string {
+      return text.empty() ? "expected a folder; got an empty name" : "";
+    },
+    "FOLDER");
 }
 
 int main(int argc, char** argv) {
   const ldem::ProcessGroup processes(argc, argv);
+  // Thread counts up to four times the processors this machine has: more only share them, cost
+  // memory and time, and a typing error (100000) would take the machine down; a few more than
+  // the processors stay allowed (a check of thread-count independence on a small machine).
+  const int cores = omp_get_num_procs();
+  const CLI::Validator threads_check = whole_in(
+      0, 4 * cores, fmt::format(" (0: all; at most 4 times this machine's {} processors)", cores));
   CLI::App app{"ldem: crack propagation in quasi-brittle materials by the Lattice Discrete "
                "Element Method (Riera's cubic truss lattice, explicit dynamics, bilinear "
                "softening bars, full energy balance).\n\nA case is a TOML file "
@@ -31,22 +76,24 @@ int main(int argc, char** argv) {
   ldem::RunOptions run;
   auto* cmd_run = app.add_subcommand("run", "Run a case and write its output folder");
   cmd_run->add_option("case", case_path, "Case file (TOML)")->required();
-  cmd_run->add_option("--out", run.out_dir,
-                      "Output folder (default: results/<case file name without .toml>)");
+  cmd_run
+      ->add_option("--out", run.out_dir,
+                   "Output folder (default: results/<case file name without .toml>)")
+      ->check(kNonEmpty);
   cmd_run->add_option("--threads", run.threads, "OpenMP threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(threads_check);
   cmd_run->add_flag("--force", run.force, "Write into a non-empty output folder");
   bool no_plot = false;
   cmd_run->add_flag("--no-plot", no_plot, "Do not make the PNG plots");
   cmd_run
       ->add_option("--checkpoint-every", run.checkpoint_every,
                    "Steps between checkpoints (overrides output.checkpoint_every)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(whole_in(0, 1000000000000000000LL));
   cmd_run
       ->add_option("--checkpoint-seconds", run.checkpoint_seconds,
                    "Wall-clock seconds between checkpoints (overrides "
                    "output.checkpoint_seconds; 0: never by time)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(finite_at_least(0.0));
   // Under mpirun: how the processes share the body (boxes over y and z).
   std::vector<int> process_grid;
   const auto add_grid_option = [&](CLI::App* cmd) {
@@ -54,7 +101,7 @@ int main(int argc, char** argv) {
                     "Under mpirun: processes along y and along z, whose product is the number "
                     "of processes (default: the grid that cuts the fewest modules)")
         ->expected(2)
-        ->check(CLI::PositiveNumber);
+        ->check(whole_in(1, 65536));
   };
   add_grid_option(cmd_run);
 
@@ -71,7 +118,7 @@ int main(int argc, char** argv) {
                                    "continue as if the run had never stopped");
   cmd_resume->add_option("dir", resume_dir, "Output folder of the interrupted run")->required();
   cmd_resume->add_option("--threads", resume_threads, "OpenMP threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(threads_check);
   cmd_resume->add_flag("--no-plot", resume_no_plot, "Do not make the PNG plots");
   add_grid_option(cmd_resume);
 
@@ -118,9 +165,11 @@ int main(int argc, char** argv) {
   cmd_ensemble->add_option("--runs", ens.runs, "Runs per case")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
-  cmd_ensemble->add_option("--out", ens.out_dir, "Output folder")->capture_default_str();
+  cmd_ensemble->add_option("--out", ens.out_dir, "Output folder")
+      ->check(kNonEmpty)
+      ->capture_default_str();
   cmd_ensemble->add_option("--threads", ens.threads, "OpenMP threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(threads_check);
   cmd_ensemble->add_flag("--force", ens.force, "Write into a non-empty output folder");
   cmd_ensemble->add_flag("--no-plot", ens_no_plot, "Do not make the PNG plots");
 
@@ -132,7 +181,7 @@ int main(int argc, char** argv) {
   cmd_modes->add_option("case", case_path, "Case file (TOML)")->required();
   cmd_modes->add_option("--count", modes_count, "Number of modes")->capture_default_str();
   cmd_modes->add_option("--threads", modes_threads, "OpenMP threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(threads_check);
 
   auto* cmd_format =
       app.add_subcommand("case-format", "Print the case-file reference (docs/case-format.md)");
@@ -144,20 +193,21 @@ int main(int argc, char** argv) {
                "line reports bar updates per second over the time-step loop");
   cmd_bench->add_option("--modules", modules, "Modules along x, y, z")
       ->expected(3)
-      ->check(CLI::PositiveNumber)
+      ->check(whole_in(1, 100000))
       ->capture_default_str();
   cmd_bench->add_option("--steps", bench.steps, "Time steps to time")
       ->check(CLI::Range(2, 1000000000))
       ->capture_default_str();
   cmd_bench->add_option("--threads", bench.threads, "OpenMP threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(threads_check)
       ->capture_default_str();
   add_grid_option(cmd_bench);
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version end with 0; every usage error with 2, as bad input does.
+    return app.exit(e) == 0 ? 0 : 2;
   }
   if (app.get_subcommands().empty()) {
     std::cout << app.help();

@@ -88,6 +88,9 @@ std::string run_state_bytes(const RunState& st) {
     put(meta, h);
   for (std::uint64_t b : st.snapshot_bytes)
     put(meta, b);
+  put(meta, static_cast<std::uint8_t>(st.plots));
+  put(meta, st.checkpoint_every);
+  put(meta, st.checkpoint_seconds);
   return meta;
 }
 
@@ -116,6 +119,11 @@ RunState parse_run_state(const std::string& meta) {
   st.snapshot_bytes.resize(st.snapshots.size());
   for (std::uint64_t& b : st.snapshot_bytes)
     get(meta, pos, b);
+  std::uint8_t plots = 1;
+  get(meta, pos, plots);
+  st.plots = plots != 0;
+  get(meta, pos, st.checkpoint_every);
+  get(meta, pos, st.checkpoint_seconds);
   return st;
 }
 

@@ -28,6 +28,11 @@ struct RunState {
   std::uint64_t resolved_hash = 0;
   std::uint64_t log_hashes[3] = {0, 0, 0};
   std::vector<std::uint64_t> snapshot_bytes;
+  // The options the run was started with, which its resume keeps (the thread and process
+  // counts change no output): plots at the end, checkpoints every so many steps and seconds.
+  bool plots = true;
+  std::uint64_t checkpoint_every = 0;
+  double checkpoint_seconds = 0.0;
 };
 
 // The logs of a run, in the order of RunState::lengths.

@@ -1,6 +1,7 @@
 // Reading a case file into a CaseSpec, with located, specific errors.
 #include "io/case_spec.hpp"
 #include "util/error.hpp"
+#include "util/text_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -799,12 +800,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
 }
 
 CaseSpec read_case(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in)
-    throw InputError(fmt::format("{}: cannot read the case file (missing or not readable)", path));
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_case(text.str(), path);
+  return parse_case(read_text_file(path, "the case file"), path);
 }
 
 } // namespace ldem
