@@ -40,6 +40,15 @@ expect_error low_kr "K_r = e_r / e_p < 1" "$(variant kr 's/^Gf = 10.0/Gf = 0.5/'
 expect_error unstable_dt "above the stable limit" "$(variant dt 's/^safety = .*//; s/^damping = 200.0/damping = 200.0\nrule = "dt"\ndt = 1e-5/')"
 expect_error empty_set 'node set "top" (box' "$(variant empty 's/^face = "z+"/box_min = [1, 1, 1]\nbox_max = [2, 2, 2]/')"
 expect_error precrack_outside "crosses no bar: it lies outside the body" "$(variant outside 's/^origin = \[-0.0001, -0.001, 0.05125\]/origin = [1.0, -0.001, 0.05125]/')"
+# Numbers that no case means: not finite, absurd, or two probes writing one column.
+expect_error nan_velocity "velocity\[0\].value: expected 3 finite numbers" "$(variant nanv 's/^value = \[0.0, 0.0, 0.02\]/value = [0.0, 0.0, nan]/')"
+expect_error nan_probe "probe\[1\].at: expected 3 finite numbers" "$(variant nanp 's/^at = \[0.0525, 0.0025, 0.05\]/at = [nan, 0.0025, 0.05]/')"
+expect_error damping "time.damping: expected a coefficient below 2 / dt" "$(variant damp 's/^damping = 200.0/damping = 1e300/')"
+expect_error end "time.end: expected at most 1e+12 steps" "$(variant end 's/^end = 4.0e-3/end = 1e300/')"
+expect_error tiny_L "lattice.L: expected a value \[1e-09, 1000\] (m), got 1e-300" "$(variant tinyL 's/^L = 0.005/L = 1e-300/')"
+expect_error tiny_rho "material.rho: expected a value \[0.001, 1e+06\] (kg/m^3), got 1e-300" "$(variant tinyrho 's/^rho = 2400.0/rho = 1e-300/')"
+expect_error huge_dt "time.dt: expected a value (0, 1000\] (s), got 1e+300" "$(variant hugedt 's/^safety = 0.5/rule = "dt"\ndt = 1e300/')"
+expect_error probe_twice 'probe\[1\].name: expected a name no other probe has (a column of probes.csv); got "pull_force" again' "$(variant twice 's/^name = "bar_ahead_of_notch"/name = "pull_force"/')"
 expect_error device "/dev/zero: expected the case file as a regular file; got a device" /dev/zero
 expect_error directory "expected the case file as a regular file; got a directory" "$SRC/cases"
 expect_error threads "--threads: expected a whole number from 0 to [0-9]* (0: all; at most 4 times this machine's" "$GOOD" --threads 100000

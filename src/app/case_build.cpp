@@ -227,6 +227,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     c.lattice = lat;
     c.conditions = cond;
     c.options.step = s.step;
+    c.options.step.end = s.end_time;
     c.options.damping = s.damping;
     c.options.law = find_law(s.law);
     if (with_simulation) {

@@ -157,7 +157,7 @@ void DistributedBody::agree_on_body() {
     combine_numbers(whole);
     stable_ = distributed_stable_step(*run_, whole);
     dt_ = time_step_by_rule(c.options.step, stable_, numbers_.ranges.E[1],
-                            numbers_.ranges.rho[0], whole.L());
+                            numbers_.ranges.rho[0], whole.L(), c.options.damping);
   } catch (const InputError& e) {
     throw InputError(fmt::format("{}: {}", c.path, e.what()));
   }

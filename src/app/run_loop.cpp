@@ -158,6 +158,14 @@ void check_folder_matches(const std::string& out_dir, const RunState& st) {
   }
 }
 
+namespace {
+bool energies_finite(const EnergyReport& r) {
+  return std::isfinite(r.external_work) && std::isfinite(r.elastic) && std::isfinite(r.kinetic) &&
+         std::isfinite(r.damage_dissipated) && std::isfinite(r.damping_dissipated) &&
+         std::isfinite(r.balance_error);
+}
+} // namespace
+
 int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState st, bool fresh,
              bool plots, std::uint64_t checkpoint_every, double checkpoint_seconds) {
   const CaseSpec& s = c.spec;
@@ -255,6 +263,26 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   std::uint64_t n = st.next;
   std::string blow_up, stopped_by;
   bool blew_up = false;
+  // A blow-up: displacements beyond any physical scale, or energies that are no longer numbers.
+  const double blow_up_limit =
+      1e3 * lat.L() * static_cast<double>(std::max({lat.nx(), lat.ny(), lat.nz()}));
+  auto blow_up_message = [&](std::uint64_t step, index_t bad, const std::string& energies) {
+    // (Every process takes part in finding the node and its displacement.)
+    const Vec3 u = bad < lat.num_nodes() ? body.displacement(bad) : Vec3{};
+    if (!writes)
+      return std::string();
+    std::string where;
+    if (bad < lat.num_nodes()) {
+      const Vec3 x = lat.position(bad);
+      where = fmt::format("node {} at ({:g}, {:g}, {:g}) m has displacement ({:g}, {:g}, {:g}) m",
+                          bad, x.x, x.y, x.z, u.x, u.y, u.z);
+    }
+    return fmt::format("numerical blow-up detected at step {} (t = {:.6g} s): {}{}{}. Check the "
+                       "case's loads, velocities, damping and material values; the outputs are "
+                       "complete up to the last report before this step",
+                       step, body.time(), where, !where.empty() && !energies.empty() ? "; " : "",
+                       energies);
+  };
   int signal = 0;
   // One process looks at signals and the clock every step; processes of a distributed run
   // agree on them every 10 steps (one reduction each), so that all stop at the same step.
@@ -280,20 +308,10 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
     // physical scale): the run stops with the first bad node, keeping its outputs up to here
     // and its last checkpoint.
     if (n % 10 == 0) {
-      const double limit =
-          1e3 * lat.L() * static_cast<double>(std::max({lat.nx(), lat.ny(), lat.nz()}));
-      const index_t bad = body.first_node_beyond(limit);
+      const index_t bad = body.first_node_beyond(blow_up_limit);
       if (bad < lat.num_nodes()) {
         blew_up = true;
-        const Vec3 u = body.displacement(bad);
-        if (writes) {
-          const Vec3 x = lat.position(bad);
-          blow_up = fmt::format("numerical blow-up detected at step {} (t = {:.6g} s): node {} "
-                                "at ({:g}, {:g}, {:g}) m has displacement ({:g}, {:g}, {:g}) m. "
-                                "Check the case's loads, velocities and material values; the "
-                                "outputs are complete up to the last report before this step",
-                                n, body.time(), bad, x.x, x.y, x.z, u.x, u.y, u.z);
-        }
+        blow_up = blow_up_message(n, bad, "");
         break;
       }
       if (s.stop_displacement > 0) {
@@ -320,6 +338,20 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       }
     }
     body.step(report);
+    // Energies that are no longer numbers (an overflow the displacement scan has not yet
+    // seen): the run stops as for a blow-up, without the row, instead of reporting them.
+    if (report && body.max_over_processes(writes && !energies_finite(body.last_report())) != 0) {
+      blew_up = true;
+      const EnergyReport& r = body.last_report();
+      blow_up = blow_up_message(
+          n, body.first_node_beyond(blow_up_limit),
+          writes ? fmt::format("the energies are no longer finite (external work {:g}, elastic "
+                               "{:g}, kinetic {:g}, dissipated {:g} and {:g} J)",
+                               r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
+                               r.damping_dissipated)
+                 : std::string());
+      break;
+    }
     if (report && writes) {
       probe_row();
       flush_events();

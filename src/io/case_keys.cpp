@@ -32,13 +32,13 @@ const std::vector<KeyDecl>& case_keys() {
     {"case", "title", "string", "\"\"", "", -kInf, kInf, false, false, "", "A line that describes the case; copied to the outputs."},
 
     {"lattice", "modules", "[3 integers]", "required", "", 1, kIdxMax, false, false, "", "Modules along x, y and z (nx, ny, nz)."},
-    {"lattice", "L", "float", "required", "m", 0, kInf, true, false, "", "Module edge."},
+    {"lattice", "L", "float", "required", "m", 1e-9, 1e3, false, false, "", "Module edge (a nanometre to a kilometre)."},
     {"lattice", "plane_strain", "string", "\"none\"", "", -kInf, kInf, false, false, "\"none\", \"x\", \"y\", \"z\"", "Hold this displacement component at every node (plates one module thick)."},
 
     {"material", "law", "string", "\"bilinear\"", "", -kInf, kInf, false, false, "\"bilinear\"", "Bar law (paper eqs. 7-17)."},
-    {"material", "E", "float or field", "required", "Pa", 0, kInf, true, false, "", "Young's modulus."},
+    {"material", "E", "float or field", "required", "Pa", 1e-3, 1e15, false, false, "", "Young's modulus."},
     {"material", "nu", "float", "0.25", "", 0, 0.5, true, true, "", "Poisson's ratio; the lattice is isotropic only at 0.25 (other values give a warning)."},
-    {"material", "rho", "float or field", "required", "kg/m^3", 0, kInf, true, false, "", "Density; as a field it is taken at module centres and lumped module by module."},
+    {"material", "rho", "float or field", "required", "kg/m^3", 1e-3, 1e6, false, false, "", "Density; as a field it is taken at module centres and lumped module by module."},
     {"material", "Gf", "float or field", "required", "N/m", 0, kInf, true, false, "", "Specific fracture energy. With e_p given, a field of Gf changes each bar's e_r (its K_r, eq. 12) and not its strength E A e_p, which stays as uniform as E and e_p; with R_f instead, e_p follows Gf bar by bar (eq. 7) and the strength varies too."},
     {"material", "e_p", "float or field", "-", "", 0, kInf, true, false, "", "Strain at peak force; give this or R_f."},
     {"material", "R_f", "float or field", "-", "m^-1/2", 0, kInf, true, false, "", "Failure factor: e_p = R_f sqrt(Gf / (E (1 - nu^2))) (eq. 7), per bar, so that a random Gf also makes the strength random."},
@@ -96,7 +96,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"time", "rule", "string", "\"safety\"", "", -kInf, kInf, false, false, "\"safety\", \"dt\", \"paper\"", "Time step: a fraction of the stable step, a given dt, or the paper's courant L / c with c = sqrt(E / rho) the fastest bar wave speed, at the largest E and the smallest density of the body (0.6 L / c in the paper); a step above the stable limit is refused."},
     {"time", "courant", "float", "0.6", "", 0, 1, true, false, "", "Courant number of rule = \"paper\" (dt = courant L / c)."},
     {"time", "safety", "float", "0.9", "", 0, 1, true, false, "", "Fraction of the stable step (rule = \"safety\")."},
-    {"time", "dt", "float", "-", "s", 0, kInf, true, false, "", "Time step (rule = \"dt\")."},
+    {"time", "dt", "float", "-", "s", 0, 1e3, true, false, "", "Time step (rule = \"dt\")."},
     {"time", "stop_displacement", "float", "-", "m", 0, kInf, true, false, "", "End the run normally, before `end`, once a node moves farther than this from its place (a body that comes apart under loads); the outputs, analyses and plots are made as at `end`, and summary.json records `stopped_by`."},
     {"time", "damping", "float", "0", "1/s", 0, kInf, false, false, "", "Mass-proportional damping coefficient a (C = a M)."},
 

@@ -236,6 +236,10 @@ public:
     for (int i = 0; i < 3; ++i) {
       const toml::node& e = (*a)[static_cast<std::size_t>(i)];
       v[i] = e.is_integer() ? static_cast<double>(*e.value<std::int64_t>()) : *e.value<double>();
+      if (!std::isfinite(v[i]))
+        fail(n, name,
+             fmt::format("expected 3 finite numbers [x, y, z]{}, got {}",
+                         *d.unit ? fmt::format(" ({})", d.unit) : "", describe(*n)));
     }
     return Vec3{v[0], v[1], v[2]};
   }
@@ -339,7 +343,11 @@ public:
     auto number = [&](const toml::node& e, const std::string& where) {
       if (!e.is_number())
         fail(&e, where, fmt::format("expected a number, got {}", describe(e)));
-      return e.is_integer() ? static_cast<double>(*e.value<std::int64_t>()) : *e.value<double>();
+      const double v =
+          e.is_integer() ? static_cast<double>(*e.value<std::int64_t>()) : *e.value<double>();
+      if (!std::isfinite(v))
+        fail(&e, where, fmt::format("expected a finite number, got {}", describe(e)));
+      return v;
     };
     if (type == "linear") {
       f.kind = Field::Kind::Linear;
@@ -765,6 +773,12 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     r.check_known(t, "probe", w);
     ProbeSpec p;
     p.name = r.get_string(t, "probe", "name", w);
+    for (const ProbeSpec& q : c.probes) // each names a column of probes.csv
+      if (q.name == p.name)
+        r.fail(t.get("name"), w + "name",
+               fmt::format("expected a name no other probe has (a column of probes.csv); got "
+                           "\"{}\" again",
+                           p.name));
     const std::string kind = r.get_string(t, "probe", "kind", w);
     const std::string what = fmt::format("a \"{}\" probe", kind);
     if (kind == "bar_force")

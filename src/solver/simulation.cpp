@@ -46,7 +46,7 @@ std::vector<double> lumped_masses(const Lattice& lat, double rho,
 } // namespace
 
 double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max,
-                         double rho_min, double L) {
+                         double rho_min, double L, double damping) {
   // The fastest bar wave speed of the body: with a graded or random E or density the paper's
   // rule is taken at the largest E and the smallest density, where the stable step is smallest.
   const double c = std::sqrt(E_max / rho_min);
@@ -77,6 +77,15 @@ double time_step_by_rule(const TimeStep& step, const StableStep& stable, double 
         "fraction",
         dt, dt * c / L, step.rule == TimeStep::Rule::Paper ? ", the paper's rule" : "", stable.dt,
         stable.dt * c / L, stable.dt));
+  if (step.end > 0.0 && step.end / dt > kMaxSteps)
+    throw InputError(fmt::format("time.end: expected at most {:.0e} steps of dt = {:.4g} s, "
+                                 "that is end <= {:.4g} s; got {:.4g} s ({:.3g} steps)",
+                                 kMaxSteps, dt, kMaxSteps * dt, step.end, step.end / dt));
+  if (damping * dt >= 2.0)
+    throw InputError(fmt::format(
+        "time.damping: expected a coefficient below 2 / dt = {:.4g} 1/s (the step cannot follow "
+        "a stronger damping: each step would reverse the motion), got {:.4g} 1/s",
+        2.0 / dt, damping));
   return dt;
 }
 
@@ -116,7 +125,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   if (!c.opt.defer_time_step) {
     c.stable = compute_stable_step(c.lat, c.table, mass, held);
     c.dt = time_step_by_rule(c.opt.step, c.stable, c.table.ranges().E[1], c.table.ranges().rho[0],
-                             c.lat.L());
+                             c.lat.L(), c.opt.damping);
   }
   law_->init_states(c, precracked);
   law_->mark_damaged_rows(c);

@@ -76,7 +76,11 @@ struct TimeStep {
   double safety = 0.9;  // fraction of the stable step (Rule::Safety)
   double dt = 0.0;      // Rule::Given
   double courant = 0.6; // Rule::Paper: dt = courant L / c, c = sqrt(E_max / rho)
+  double end = 0.0;     // the simulated time [s]: at most kMaxSteps steps of dt (0: not checked)
 };
+// The most steps a run may take: 1e12 (weeks on the smallest body, at a million steps a
+// second); a longer one is a typing error in time.end or the step.
+inline constexpr double kMaxSteps = 1e12;
 
 struct SolverOptions {
   TimeStep step;
@@ -99,9 +103,11 @@ struct SolverOptions {
 
 // dt by the rule of `step`: a fraction of the stable step, given, or the paper's Courant
 // number at the fastest bar wave speed of the body, sqrt(E_max / rho_min). Throws InputError
-// for a rule's bad value or a dt that is not positive or above the stable limit.
+// for a rule's bad value or a dt that is not positive or above the stable limit, and for a
+// mass-proportional damping a with a dt >= 2 (the step's velocity factor
+// (1 - a dt / 2) / (1 + a dt / 2) would turn negative: motion reversed each step).
 double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max,
-                         double rho_min, double L);
+                         double rho_min, double L, double damping = 0.0);
 
 struct Event {
   index_t bar;
