@@ -124,7 +124,7 @@ TEST(CaseFile, OutOfRange) {
   std::string e = error_of(edit("e_p = 1e-4", "e_p = 1e-4\nnu = 0.6"));
   EXPECT_NE(e.find("material.nu: expected a value (0, 0.5), got 0.6"), std::string::npos) << e;
   e = error_of(edit("L = 0.01", "L = -0.01"));
-  EXPECT_NE(e.find("case.toml:4: lattice.L: expected a value > 0 (m), got -0.01"),
+  EXPECT_NE(e.find("case.toml:4: lattice.L: expected a value [1e-09, 1000] (m), got -0.01"),
             std::string::npos)
       << e;
   e = error_of(edit("dofs = \"z\"", "dofs = \"w\""));

@@ -43,8 +43,8 @@ expect_error precrack_outside "crosses no bar: it lies outside the body" "$(vari
 # Numbers that no case means: not finite, absurd, or two probes writing one column.
 expect_error nan_velocity "velocity\[0\].value: expected 3 finite numbers" "$(variant nanv 's/^value = \[0.0, 0.0, 0.02\]/value = [0.0, 0.0, nan]/')"
 expect_error nan_probe "probe\[1\].at: expected 3 finite numbers" "$(variant nanp 's/^at = \[0.0525, 0.0025, 0.05\]/at = [nan, 0.0025, 0.05]/')"
-expect_error damping "time.damping: expected a coefficient below 2 / dt" "$(variant damp 's/^damping = 200.0/damping = 1e300/')"
-expect_error end "time.end: expected at most 1e+12 steps" "$(variant end 's/^end = 4.0e-3/end = 1e300/')"
+expect_error damping "damp.toml:[0-9]*: time.damping: expected a coefficient below 2 / dt" "$(variant damp 's/^damping = 200.0/damping = 1e300/')"
+expect_error end "end.toml:[0-9]*: time.end: expected at most 1e+12 steps" "$(variant end 's/^end = 4.0e-3/end = 1e300/')"
 expect_error tiny_L "lattice.L: expected a value \[1e-09, 1000\] (m), got 1e-300" "$(variant tinyL 's/^L = 0.005/L = 1e-300/')"
 expect_error tiny_rho "material.rho: expected a value \[0.001, 1e+06\] (kg/m^3), got 1e-300" "$(variant tinyrho 's/^rho = 2400.0/rho = 1e-300/')"
 expect_error huge_dt "time.dt: expected a value (0, 1000\] (s), got 1e+300" "$(variant hugedt 's/^safety = 0.5/rule = "dt"\ndt = 1e300/')"

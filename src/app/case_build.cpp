@@ -159,6 +159,14 @@ const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& na
   throw InputError("node set \"" + name + "\" is not defined");
 }
 
+std::string located(const CaseSpec& s, const std::string& path, const std::string& message) {
+  const std::size_t colon = message.find(": ");
+  const auto at = colon == std::string::npos ? s.key_lines.end()
+                                             : s.key_lines.find(message.substr(0, colon));
+  return at == s.key_lines.end() ? fmt::format("{}: {}", path, message)
+                                 : fmt::format("{}:{}: {}", path, at->second, message);
+}
+
 BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&)>& adjust,
                      bool with_simulation) {
   BuiltCase c;
@@ -237,7 +245,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
                                            c.options, c.precracked);
     }
   } catch (const InputError& e) {
-    throw InputError(fmt::format("{}: {}", path, e.what()));
+    throw InputError(located(s, path, e.what()));
   }
   c.path = path;
   if (c.sim)

@@ -43,6 +43,10 @@ void check_end_time(const BuiltCase& c, double dt);
 // the node count, or its traction times the area of its face.
 double load_total_force(const BuiltCase& c, std::size_t i, double t);
 
+// An error found after the case was read, as "path:line: message" when the message begins
+// with a key the case has ("time.damping: ..."), else "path: message".
+std::string located(const CaseSpec& s, const std::string& path, const std::string& message);
+
 // Builds everything a run needs; bad input throws InputError naming the case file. `adjust`,
 // if given, changes the case after it is read (ensemble perturbations). Without
 // `with_simulation`, sim stays empty (the processes of a distributed run other than the first

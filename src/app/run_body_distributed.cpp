@@ -125,7 +125,7 @@ DistributedBody::DistributedBody(BuiltCase& c, ProcessGrid grid, int rank)
   try {
     table_built.emplace(local, c.spec.material, fields, &window);
   } catch (const InputError& e) {
-    throw InputError(fmt::format("{}: {}", c.path, e.what()));
+    throw InputError(located(c.spec, c.path, e.what()));
   }
   BarTable& table = *table_built;
   numbers_.ranges = table.ranges();
@@ -159,7 +159,7 @@ void DistributedBody::agree_on_body() {
     dt_ = time_step_by_rule(c.options.step, stable_, numbers_.ranges.E[1],
                             numbers_.ranges.rho[0], whole.L(), c.options.damping);
   } catch (const InputError& e) {
-    throw InputError(fmt::format("{}: {}", c.path, e.what()));
+    throw InputError(located(c.spec, c.path, e.what()));
   }
   run_->sim().set_time_step(stable_, dt_);
   check_end_time(c, dt_);

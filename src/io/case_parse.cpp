@@ -4,6 +4,7 @@
 #include "util/text_file.hpp"
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <cstring>
 #include <fmt/format.h>
@@ -145,8 +146,12 @@ public:
     const toml::node* n = t.get(d.key);
     if (!n && std::string(d.fallback) == "required")
       fail(&t, name, "missing required key");
+    if (n && lines_)
+      (*lines_)[name] = static_cast<int>(n->source().begin.line);
     return n;
   }
+  // Where each key read is (CaseSpec::key_lines), for errors found after reading.
+  std::map<std::string, int>* lines_ = nullptr;
   static bool no_default(const KeyDecl& d) { return std::string(d.fallback) == "-"; }
 
   std::optional<double> opt_float(const toml::table& t, const char* table, const char* key,
@@ -480,8 +485,10 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     throw InputError(
         fmt::format("{}:{}: malformed TOML: {}", name, e.source().begin.line, e.description()));
   }
-  const Reader r(name);
   CaseSpec c;
+  Reader reader(name);
+  reader.lines_ = &c.key_lines;
+  const Reader& r = reader;
   c.file = name;
   // Top level: only the declared tables.
   for (const auto& [k, node] : root) {

@@ -11,6 +11,7 @@
 #include "solver/time_function.hpp"
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -85,6 +86,9 @@ struct AnalysisSpec {
 
 struct CaseSpec {
   std::string file; // the case file's path, for messages
+  // The line of each key read ("time.damping", "probe[1].name"), for errors found after the
+  // case is read (case_build: `located`).
+  std::map<std::string, int> key_lines;
   std::string title;
   index_t nx = 0, ny = 0, nz = 0;
   double L = 0.0;

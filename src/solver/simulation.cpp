@@ -55,7 +55,7 @@ double time_step_by_rule(const TimeStep& step, const StableStep& stable, double 
   case TimeStep::Rule::Safety:
     if (!(step.safety > 0.0 && step.safety <= 1.0))
       throw InputError(fmt::format(
-          "time step safety fraction: expected a value in (0, 1], got {:g}", step.safety));
+          "time.safety: expected a fraction of the stable step in (0, 1], got {:g}", step.safety));
     dt = step.safety * stable.dt;
     break;
   case TimeStep::Rule::Given:
@@ -63,7 +63,7 @@ double time_step_by_rule(const TimeStep& step, const StableStep& stable, double 
     break;
   case TimeStep::Rule::Paper:
     if (!(step.courant > 0.0 && step.courant <= 1.0))
-      throw InputError(fmt::format("time step courant number: expected a value in (0, 1], got {:g}",
+      throw InputError(fmt::format("time.courant: expected a value in (0, 1], got {:g}",
                                    step.courant));
     dt = step.courant * L / c;
     break;
@@ -72,10 +72,11 @@ double time_step_by_rule(const TimeStep& step, const StableStep& stable, double 
     throw InputError(fmt::format("time step: expected a positive dt in s, got {:g}", dt));
   if (dt > stable.dt)
     throw InputError(fmt::format(
-        "time step: dt = {:.4g} s ({:.3f} L/c{}) is above the stable limit {:.4g} s ({:.3f} L/c) "
+        "{}: dt = {:.4g} s ({:.3f} L/c{}) is above the stable limit {:.4g} s ({:.3f} L/c) "
         "of this lattice (2 / largest eigenfrequency of M^-1 K); use dt <= {:.4g} s or a safety "
         "fraction",
-        dt, dt * c / L, step.rule == TimeStep::Rule::Paper ? ", the paper's rule" : "", stable.dt,
+        step.rule == TimeStep::Rule::Paper ? "time.courant" : "time.dt", dt, dt * c / L,
+        step.rule == TimeStep::Rule::Paper ? ", the paper's rule" : "", stable.dt,
         stable.dt * c / L, stable.dt));
   if (step.end > 0.0 && step.end / dt > kMaxSteps)
     throw InputError(fmt::format("time.end: expected at most {:.0e} steps of dt = {:.4g} s, "
