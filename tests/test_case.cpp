@@ -309,9 +309,13 @@ set = "top"
 dofs = "z"
 value = [0, 0, -0.01]
 )");
-  EXPECT_NE(e.find("ldem_conditions_case.toml: [[velocity]] tables 1 (node set \"top\") and 2 "
-                   "(node set \"top\") both impose the z velocity on 10 nodes (the first: node 40 "
-                   "at (0, 0, 0.04) m)"),
+  // The error is placed at the second table's dofs key: kGood's lines, a blank line, the
+  // header, set, dofs.
+  const long second = std::count(kGood.begin(), kGood.end(), '\n') + 4;
+  EXPECT_NE(e.find(fmt::format("ldem_conditions_case.toml:{}: velocity[1].dofs: [[velocity]] "
+                               "tables 1 (node set \"top\") and 2 (node set \"top\") both impose "
+                               "the z velocity on 10 nodes (the first: node 40 at (0, 0, 0.04) m)",
+                               second)),
             std::string::npos)
       << e;
   // A DOF both held and driven.
@@ -343,6 +347,51 @@ dofs = "x"
 value = [0.01, 0, 0]
 )"),
             "");
+}
+
+// Errors found only once the body is built carry the line of the table entry they concern.
+// kGood's lines, then a blank line: the appended entry's header is two lines further.
+TEST(CaseFile, ErrorsFoundOnTheBuiltBodyNameTheEntrysLine) {
+  const long header = std::count(kGood.begin(), kGood.end(), '\n') + 2;
+  // A pre-crack beside the 0.04 m body crosses no bar.
+  std::string e = build_error_of(kGood + R"(
+[[precrack]]
+name = "away"
+origin = [1.0, -0.001, 0.02]
+edge1 = [0.01, 0, 0]
+edge2 = [0, 0.02, 0]
+)");
+  EXPECT_NE(e.find(fmt::format("ldem_conditions_case.toml:{}: precrack[0]: pre-crack \"away\" "
+                               "crosses no bar",
+                               header)),
+            std::string::npos)
+      << e;
+  // A box beside the body selects no node; the node set is the second, after "top".
+  e = build_error_of(kGood + R"(
+[[node_set]]
+name = "nothing"
+box_min = [1, 1, 1]
+box_max = [2, 2, 2]
+)");
+  EXPECT_NE(e.find(fmt::format("ldem_conditions_case.toml:{}: node_set[1]: node set \"nothing\" "
+                               "(box [1, 1, 1] to [2, 2, 2]) selects no node",
+                               header)),
+            std::string::npos)
+      << e;
+  // A rupture strain field that falls to e_p along x is found on the bars; the error names the
+  // [material] table's line (line 7 of kGood: a blank first line, four lines of [lattice], a
+  // blank line).
+  const std::string path = ::testing::TempDir() + "ldem_conditions_case.toml";
+  std::ofstream(path) << edit(
+      "e_p = 1e-4", "e_p = 1e-4\ne_r = { type = \"linear\", axis = \"x\", values = [1e-4, 1e-3] }");
+  e.clear();
+  try {
+    build_case(path); // the bars' values are found only where the simulation is built
+  } catch (const InputError& x) {
+    e = x.what();
+  }
+  EXPECT_NE(e.find("ldem_conditions_case.toml:7: material: bar "), std::string::npos) << e;
+  EXPECT_NE(e.find("expected e_r > e_p"), std::string::npos) << e;
 }
 
 } // namespace
@@ -466,8 +515,8 @@ traction = [0, 0, 2e6]
   const std::string on_box = std::string(traction_case).replace(traction_case.find("set = \"top\"\ntraction"),
                                                            11, "set = \"block\"");
   std::string e = build_error_of(on_box);
-  EXPECT_NE(e.find("[[load]] \"pull\": traction: expected a node set given by face or "
-                   "face_centres, whose nodes' areas are known; got \"block\", box"),
+  EXPECT_NE(e.find("load[0].traction: load \"pull\" has a traction: expected a node set given "
+                   "by face or face_centres, whose nodes' areas are known; got \"block\", box"),
             std::string::npos)
       << e;
   e = build_error_of(edit("dofs = \"z\"", "dofs = \"x\"") + load + "force = [0, 0, 1]\n");

@@ -56,8 +56,8 @@ std::vector<double> traction_weights(const CaseSpec& s, const LoadSpec& l, const
   if (spec != s.node_sets.end() && spec->kind == NodeSetSpec::Kind::FaceCentres)
     return std::vector<double>(select_face_module_centres(lat, spec->face).size(),
                                lat.L() * lat.L());
-  throw InputError(fmt::format("[[load]] \"{}\": traction: expected a node set given by face or "
-                               "face_centres, whose nodes' areas are known; got \"{}\", {}",
+  throw InputError(fmt::format("load \"{}\" has a traction: expected a node set given by face "
+                               "or face_centres, whose nodes' areas are known; got \"{}\", {}",
                                l.name, l.set,
                                spec == s.node_sets.end() ? "not a node set" : how(*spec)));
 }
@@ -118,7 +118,8 @@ void check_conditions_agree(const CaseSpec& s, const std::vector<NodeSet>& sets,
   for (std::size_t t = 0; t < s.velocities.size(); ++t) {
     const VelocitySpec& v = s.velocities[t];
     const std::vector<index_t>& nodes = set_named(sets, v.set).nodes;
-    const std::string table = fmt::format("[[velocity]] table {} (node set \"{}\")", t + 1, v.set);
+    const std::string table =
+        fmt::format("velocity[{}].dofs: [[velocity]] table {} (node set \"{}\")", t, t + 1, v.set);
     for (int d = 0; d < 3; ++d) {
       const DofMask bit = static_cast<DofMask>(1u << d);
       if (!(v.dofs & bit))
@@ -142,10 +143,10 @@ void check_conditions_agree(const CaseSpec& s, const std::vector<NodeSet>& sets,
           if (const auto [count, first] = shared(set_named(sets, s.velocities[u].set).nodes, nodes);
               count > 0)
             throw InputError(fmt::format(
-                "[[velocity]] tables {} (node set \"{}\") and {} (node set \"{}\") both impose "
-                "the {} velocity on {} nodes (the first: {}): one velocity per DOF; let the sets "
-                "not overlap",
-                u + 1, s.velocities[u].set, t + 1, v.set, kAxis[d], count, where(first)));
+                "velocity[{}].dofs: [[velocity]] tables {} (node set \"{}\") and {} (node set "
+                "\"{}\") both impose the {} velocity on {} nodes (the first: {}): one velocity per "
+                "DOF; let the sets not overlap",
+                t, u + 1, s.velocities[u].set, t + 1, v.set, kAxis[d], count, where(first)));
     }
   }
 }
@@ -160,12 +161,34 @@ const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& na
 }
 
 std::string located(const CaseSpec& s, const std::string& path, const std::string& message) {
+  // The key, else the table entry or table it is in ("load[1].traction", then "load[1]";
+  // "material fields", then "material").
   const std::size_t colon = message.find(": ");
-  const auto at = colon == std::string::npos ? s.key_lines.end()
-                                             : s.key_lines.find(message.substr(0, colon));
+  auto at = s.key_lines.end();
+  if (colon != std::string::npos)
+    for (std::string key = message.substr(0, colon); !key.empty() && at == s.key_lines.end();) {
+      at = s.key_lines.find(key);
+      const std::size_t cut = key.find_last_of(". ");
+      key = cut == std::string::npos ? std::string() : key.substr(0, cut);
+    }
   return at == s.key_lines.end() ? fmt::format("{}: {}", path, message)
                                  : fmt::format("{}:{}: {}", path, at->second, message);
 }
+
+namespace {
+
+// Runs `f`; an InputError from it is given the case entry it concerns ("precrack[0]: ..."),
+// so that located() finds the entry's line.
+template <class F>
+auto for_entry(const std::string& entry, F&& f) {
+  try {
+    return f();
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", entry, e.what()));
+  }
+}
+
+} // namespace
 
 BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&)>& adjust,
                      bool with_simulation) {
@@ -176,10 +199,15 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
   const CaseSpec& s = c.spec;
   try {
     Lattice lat(s.nx, s.ny, s.nz, s.L);
-    for (const NodeSetSpec& ns : s.node_sets)
-      c.sets.push_back(make_node_set(ns.name, select(lat, ns), how(ns)));
-    for (const PrecrackSpec& p : s.precracks) {
-      c.cuts.push_back(cut_bars(lat, p.rect, p.nudge));
+    for (std::size_t i = 0; i < s.node_sets.size(); ++i) {
+      const NodeSetSpec& ns = s.node_sets[i];
+      c.sets.push_back(for_entry(fmt::format("node_set[{}]", i),
+                                 [&] { return make_node_set(ns.name, select(lat, ns), how(ns)); }));
+    }
+    for (std::size_t i = 0; i < s.precracks.size(); ++i) {
+      const PrecrackSpec& p = s.precracks[i];
+      c.cuts.push_back(
+          for_entry(fmt::format("precrack[{}]", i), [&] { return cut_bars(lat, p.rect, p.nudge); }));
       c.precracked.insert(c.precracked.end(), c.cuts.back().bars.begin(), c.cuts.back().bars.end());
     }
     std::sort(c.precracked.begin(), c.precracked.end());
@@ -190,9 +218,12 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       cond.fixed.push_back({set_named(c.sets, f.set), f.dofs});
     for (const VelocitySpec& v : s.velocities)
       cond.velocities.push_back({set_named(c.sets, v.set), v.dofs, v.value, v.scale});
-    for (const LoadSpec& l : s.loads)
-      cond.loads.push_back(
-          {set_named(c.sets, l.set), l.force, l.scale, traction_weights(s, l, lat)});
+    for (std::size_t i = 0; i < s.loads.size(); ++i) {
+      const LoadSpec& l = s.loads[i];
+      cond.loads.push_back({set_named(c.sets, l.set), l.force, l.scale,
+                            for_entry(fmt::format("load[{}].traction", i),
+                                      [&] { return traction_weights(s, l, lat); })});
+    }
     check_conditions_agree(s, c.sets, lat);
     for (const ProbeSpec& p : s.probes) {
       index_t best = 0;
@@ -255,9 +286,10 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
 
 void check_end_time(const BuiltCase& c, double dt) {
   if (!(c.spec.end_time >= dt))
-    throw InputError(fmt::format("{}: time.end: expected at least one time step ({:.4g} s), got "
-                                 "{:g} s",
-                                 c.path, dt, c.spec.end_time));
+    throw InputError(located(c.spec, c.path,
+                             fmt::format("time.end: expected at least one time step ({:.4g} s), "
+                                         "got {:g} s",
+                                         dt, c.spec.end_time)));
 }
 
 BodyNumbers body_numbers(const Simulation& sim) {

@@ -518,13 +518,20 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   auto table = [&](const char* t) -> const toml::table& {
     static const toml::table empty;
     const toml::table* p = root[t].as_table();
+    if (p)
+      c.key_lines[t] = static_cast<int>(p->source().begin.line);
     return p ? *p : empty;
   };
+  // The entries of an array of tables; each entry's line is kept as "name[i]" for errors
+  // found once the body is built (a pre-crack that crosses no bar, a node set that is empty).
   auto array = [&](const char* t) {
     std::vector<const toml::table*> out;
     if (const toml::array* a = root[t].as_array())
-      for (const toml::node& e : *a)
+      for (const toml::node& e : *a) {
+        c.key_lines[fmt::format("{}[{}]", t, out.size())] =
+            static_cast<int>(e.source().begin.line);
         out.push_back(e.as_table());
+      }
     return out;
   };
 
