@@ -68,6 +68,40 @@ TEST(CaseFile, GoodCaseParsesWithDefaults) {
 // A key the reader knows but that does not apply to what its table is (t_start on a ramp, an
 // axis on a random field, a covariance without a correlation length, a courant number without
 // the paper's rule, a point on a reaction probe) is refused like an unknown key, not dropped.
+// law = "bilinear_fatigue" needs a [fatigue] table, which applies to it alone; its values are
+// read with their defaults (threshold 0, the gate 0 meaning 1 % of e_p, count_every 10, A
+// given for bars of length L) and their ranges.
+TEST(CaseFile, FatigueLawAndItsTable) {
+  const std::string with_law = edit("e_p = 1e-4", "e_p = 1e-4\nlaw = \"bilinear_fatigue\"");
+  std::string e = error_of(with_law);
+  EXPECT_NE(e.find("case.toml:12: material.law: law = \"bilinear_fatigue\" needs a [fatigue] "
+                   "table"),
+            std::string::npos)
+      << e;
+  e = error_of(kGood + "\n[fatigue]\nA = 1e10\nm = 4\n");
+  EXPECT_NE(e.find("fatigue: a [fatigue] table applies to law = \"bilinear_fatigue\", not "
+                   "\"bilinear\""),
+            std::string::npos)
+      << e;
+  const CaseSpec c = parse_case(with_law + "\n[fatigue]\nA = 1e10\nm = 4\n", "case.toml");
+  ASSERT_TRUE(c.material.fatigue.has_value());
+  EXPECT_EQ(c.law, "bilinear_fatigue");
+  EXPECT_EQ(c.material.fatigue->A, 1e10);
+  EXPECT_EQ(c.material.fatigue->m, 4.0);
+  EXPECT_EQ(c.material.fatigue->threshold, 0.0);
+  EXPECT_EQ(c.material.fatigue->gate, 0.0);
+  EXPECT_EQ(c.material.fatigue->count_every, 10u);
+  EXPECT_EQ(c.material.fatigue->length, 0.01); // the case's L
+  e = error_of(with_law + "\n[fatigue]\nA = -1\nm = 4\n");
+  EXPECT_NE(e.find("fatigue.A: expected a value > 0"), std::string::npos) << e;
+  e = error_of(with_law + "\n[fatigue]\nA = 1e10\nm = 4\ngate = nan\n");
+  EXPECT_NE(e.find("fatigue.gate"), std::string::npos) << e;
+  e = error_of(with_law + "\n[fatigue]\nA = 1e10\nm = 4\ncount_every = 0\n");
+  EXPECT_NE(e.find("fatigue.count_every: expected a value [1, 1e+06]"), std::string::npos) << e;
+  e = error_of(with_law + "\n[fatigue]\nA = 1e10\nm = 4\nphase = 2\n");
+  EXPECT_NE(e.find("fatigue.phase: unknown key"), std::string::npos) << e;
+}
+
 TEST(CaseFile, KeysThatDoNotApplyAreRefused) {
   std::string e = error_of(edit("{ type = \"ramp\", duration = 1e-4 }",
                                 "{ type = \"ramp\", duration = 1e-4, t_start = 1e-5 }"));

@@ -1,6 +1,7 @@
 // Building a case: from a case file to a ready Simulation (or, for a distributed run, what
 // each process needs to build its subdomain), and the resolved case the run reports.
 #include "app/case_run.hpp"
+#include "material/bar_law_fatigue.hpp"
 #include "solver/laws.hpp"
 #include "util/error.hpp"
 
@@ -324,6 +325,24 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     mat.insert("R_f", *s.material.R_f);
   if (s.material.e_r)
     mat.insert("e_r", *s.material.e_r);
+  if (const auto& f = s.material.fatigue)
+    root.insert("fatigue",
+                toml::table{{"A", f->A},
+                            {"m", f->m},
+                            {"threshold", f->threshold},
+                            {"length", f->length},
+                            {"count_every", static_cast<std::int64_t>(f->count_every)}});
+  if (const auto& f = s.material.fatigue) {
+    // The gate as given, or the default as a strain range: 1 % of e_p, its range over the bars.
+    toml::table& t = *root["fatigue"].as_table();
+    if (f->gate > 0.0)
+      t.insert("gate", f->gate);
+    else if (body.ranges.e_p[0] == body.ranges.e_p[1])
+      t.insert("gate", kDefaultGate * body.ranges.e_p[0]);
+    else
+      t.insert("gate", toml::array{kDefaultGate * body.ranges.e_p[0],
+                                   kDefaultGate * body.ranges.e_p[1]});
+  }
   const std::pair<const char*, const std::optional<Field>*> field_of[] = {
       {"E", &s.fields.E},     {"Gf", &s.fields.Gf},   {"e_p", &s.fields.e_p},
       {"e_r", &s.fields.e_r}, {"R_f", &s.fields.R_f}, {"rho", &s.fields.rho}};

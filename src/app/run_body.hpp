@@ -64,6 +64,8 @@ public:
   virtual void step(bool report) = 0;
   // The whole body's energies of the last report step (first process).
   const EnergyReport& last_report() const { return report_; }
+  // Whether the bar law has a fatigue life (its energies include fatigue_dissipated).
+  bool counts_cycles() const { return sim().counts_cycles(); }
   // The case's probes at the start of the last report step (first process).
   const std::vector<double>& last_probes() const { return probes_; }
   // The whole body's events gathered so far and not yet taken, in (step, bar) order (first

@@ -259,7 +259,7 @@ void DistributedBody::append_probe_terms(std::vector<double>& out) const {
 void DistributedBody::append_energy_rows(std::vector<double>& out) {
   const Simulation& sim = run_->sim();
   EnergyRows& rows = rows_;
-  for (auto* v : {&rows.elastic, &rows.damage, &rows.bar_keys, &rows.kinetic})
+  for (auto* v : {&rows.elastic, &rows.damage, &rows.fatigue, &rows.bar_keys, &rows.kinetic})
     v->clear();
   run_->append_owned_energy_rows(rows);
   // The exact sums this process adds up (work, twice the damping, the imposed-velocity DOF's
@@ -271,7 +271,7 @@ void DistributedBody::append_energy_rows(std::vector<double>& out) {
   }
   out.push_back(static_cast<double>(rows.elastic.size()));
   out.push_back(static_cast<double>(rows.kinetic.size()));
-  for (const auto* v : {&rows.elastic, &rows.damage, &rows.kinetic})
+  for (const auto* v : {&rows.elastic, &rows.damage, &rows.fatigue, &rows.kinetic})
     out.insert(out.end(), v->begin(), v->end());
 }
 
@@ -299,7 +299,7 @@ void DistributedBody::read_report(bool report) {
   // bar rows of all processes, in rank order, visited in bar_order_ are the body's rows in
   // order.
   std::vector<const double*> probe_terms;
-  std::vector<double> elastic_rows, damage_rows, kinetic_rows;
+  std::vector<double> elastic_rows, damage_rows, fatigue_rows, kinetic_rows;
   ExactSum work, damping2, kinetic;
   std::size_t pos = 0;
   for (int r = 0; r < ranks_; ++r) {
@@ -319,8 +319,9 @@ void DistributedBody::read_report(bool report) {
     const auto b = static_cast<std::ptrdiff_t>(nb), n = static_cast<std::ptrdiff_t>(nn);
     elastic_rows.insert(elastic_rows.end(), rows, rows + b);
     damage_rows.insert(damage_rows.end(), rows + b, rows + 2 * b);
-    kinetic_rows.insert(kinetic_rows.end(), rows + 2 * b, rows + 2 * b + n);
-    pos += 2 + 2 * nb + nn;
+    fatigue_rows.insert(fatigue_rows.end(), rows + 2 * b, rows + 3 * b);
+    kinetic_rows.insert(kinetic_rows.end(), rows + 3 * b, rows + 3 * b + n);
+    pos += 2 + 3 * nb + nn;
     const auto ne = static_cast<std::size_t>(all[pos]);
     for (std::size_t q = pos + 1; q < pos + 1 + ne; q += 3)
       events_.push_back({static_cast<index_t>(all[q]), static_cast<BarState>(all[q + 1]),
@@ -330,6 +331,7 @@ void DistributedBody::read_report(bool report) {
   // From zero, row after row, as one process sums them; the kinetic energy exactly, as there.
   const double elastic = sum_in_order(elastic_rows, bar_order_);
   const double damage = sum_in_order(damage_rows, bar_order_);
+  const double fatigue = sum_in_order(fatigue_rows, bar_order_);
   for (double x : kinetic_rows)
     kinetic.add(x);
   const double t = run_->sim().last_report().time;
@@ -337,7 +339,7 @@ void DistributedBody::read_report(bool report) {
     initial_ = elastic + kinetic.value();
   report_ = energy_report(
       t, work.value(), elastic, kinetic.value(), damage, 0.5 * damping2.value(), initial_,
-      balance_floor(numbers_.ranges.E[1], numbers_.ranges.e_p[1], lattice().volume()));
+      balance_floor(numbers_.ranges.E[1], numbers_.ranges.e_p[1], lattice().volume()), fatigue);
   if (!report)
     return;
   // Probes: the owner's bar force; a reaction's terms subtracted in the set's order, each

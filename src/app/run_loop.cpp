@@ -162,7 +162,7 @@ namespace {
 bool energies_finite(const EnergyReport& r) {
   return std::isfinite(r.external_work) && std::isfinite(r.elastic) && std::isfinite(r.kinetic) &&
          std::isfinite(r.damage_dissipated) && std::isfinite(r.damping_dissipated) &&
-         std::isfinite(r.balance_error);
+         std::isfinite(r.fatigue_dissipated) && std::isfinite(r.balance_error);
 }
 } // namespace
 
@@ -185,9 +185,12 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
                  : std::make_unique<OutputFile>(dir + name, st.lengths[i]);
   };
   const auto energy = open(kLogs[0], 0), events = open(kLogs[1], 1), probes = open(kLogs[2], 2);
+  // A law with a fatigue life adds the energy its broken bars held (a column before the error).
+  const bool fatigue_column = body.counts_cycles();
   if (fresh && writes) {
-    energy->write("time,external_work,elastic,kinetic,damage_dissipated,damping_dissipated,"
-                  "balance_error\n");
+    energy->write(fmt::format("time,external_work,elastic,kinetic,damage_dissipated,"
+                              "damping_dissipated,{}balance_error\n",
+                              fatigue_column ? "fatigue_dissipated," : ""));
     events->write("bar,event,time,x,y,z\n");
     std::string head = "time";
     for (const ProbeSpec& p : s.probes)
@@ -356,10 +359,14 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       probe_row();
       flush_events();
       const EnergyReport& r = body.last_report();
-      energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g}\n", r.time,
+      energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}{:.6g}\n", r.time,
                                 r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
-                                r.damping_dissipated, r.balance_error));
-      if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated) &&
+                                r.damping_dissipated,
+                                fatigue_column ? fmt::format("{:.9g},", r.fatigue_dissipated)
+                                               : std::string(),
+                                r.balance_error));
+      if (r.external_work + r.initial >
+              1e-6 * (r.elastic + r.kinetic + r.damage_dissipated + r.fatigue_dissipated) &&
           n > 0)
         st.max_balance = std::max(st.max_balance, r.balance_error);
       if (std::chrono::steady_clock::now() - last_flush > std::chrono::seconds(1))

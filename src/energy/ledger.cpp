@@ -10,7 +10,8 @@ double balance_floor(double E_max, double e_p_max, double volume) {
 }
 
 EnergyReport energy_report(double time, double external_work, double elastic, double kinetic,
-                           double damage, double damping, double initial, double floor) {
+                           double damage, double damping, double initial, double floor,
+                           double fatigue) {
   EnergyReport r;
   r.time = time;
   r.external_work = external_work;
@@ -18,9 +19,10 @@ EnergyReport energy_report(double time, double external_work, double elastic, do
   r.kinetic = kinetic;
   r.damage_dissipated = damage;
   r.damping_dissipated = damping;
+  r.fatigue_dissipated = fatigue;
   r.initial = initial;
   const double input = r.external_work + initial;
-  const double held = elastic + kinetic + damage + r.damping_dissipated;
+  const double held = elastic + kinetic + damage + r.damping_dissipated + fatigue;
   r.balance_error = std::abs(input - held) / std::max(std::abs(input), floor);
   return r;
 }

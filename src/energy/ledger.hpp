@@ -1,4 +1,4 @@
-// The energy balance: external work = elastic + kinetic + damage + damping (+ initial).
+// The energy balance: external work = elastic + kinetic + damage + damping + fatigue (+ initial).
 #pragma once
 
 #include "energy/exact_sum.hpp"
@@ -14,6 +14,7 @@ struct EnergyReport {
   double kinetic = 0.0;           // sum of m v_{n-1/2} . v_{n+1/2} / 2 (central differences)
   double damage_dissipated = 0.0; // sum over bars of the area O-A-P (paper Fig. 1c)
   double damping_dissipated = 0.0;
+  double fatigue_dissipated = 0.0; // stored in bars when their fatigue life ran out
   double initial = 0.0;       // elastic + kinetic energy at t = 0 (initial velocities)
   double balance_error = 0.0; // |W + E0 - (U + K + D + Dc)| / max(|W + E0|, floor): relative
 };
@@ -21,7 +22,8 @@ struct EnergyReport {
 // A report from its energies, with the balance error relative to the energy put in, W + E0,
 // or to `floor` while that is smaller (balance_floor).
 EnergyReport energy_report(double time, double external_work, double elastic, double kinetic,
-                           double damage, double damping, double initial, double floor);
+                           double damage, double damping, double initial, double floor,
+                           double fatigue = 0.0);
 
 // The smallest energy the balance error is taken relative to: a billionth of E V e_p^2 / 2, the
 // energy the body would hold with every bar at its peak strain, with the largest E and e_p of the

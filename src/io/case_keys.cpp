@@ -35,7 +35,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"lattice", "L", "float", "required", "m", 1e-9, 1e3, false, false, "", "Module edge (a nanometre to a kilometre)."},
     {"lattice", "plane_strain", "string", "\"none\"", "", -kInf, kInf, false, false, "\"none\", \"x\", \"y\", \"z\"", "Hold this displacement component at every node (plates one module thick)."},
 
-    {"material", "law", "string", "\"bilinear\"", "", -kInf, kInf, false, false, "\"bilinear\"", "Bar law (paper eqs. 7-17)."},
+    {"material", "law", "string", "\"bilinear\"", "", -kInf, kInf, false, false, "\"bilinear\", \"bilinear_fatigue\"", "Bar law: the paper's (eqs. 7-17), or the same with a fatigue life that strain cycles use up (needs a [fatigue] table; docs/model.md, \"Fatigue\")."},
     {"material", "E", "float or field", "required", "Pa", 1e-3, 1e15, false, false, "", "Young's modulus."},
     {"material", "nu", "float", "0.25", "", 0, 0.5, true, true, "", "Poisson's ratio; the lattice is isotropic only at 0.25 (other values give a warning)."},
     {"material", "rho", "float or field", "required", "kg/m^3", 1e-3, 1e6, false, false, "", "Density; as a field it is taken at module centres and lumped module by module."},
@@ -45,6 +45,13 @@ const std::vector<KeyDecl>& case_keys() {
     {"material", "e_r", "float or field", "-", "", 0, kInf, true, false, "", "Strain at rupture of the normal bars; then each bar's Gf follows from eq. 11. Default: e_r = K_r e_p with K_r from eq. 12."},
     {"material", "single_ratio", "bool", "false", "", -kInf, kInf, false, false, "", "Use the paper's single A^f/A = 0.34 for both bar kinds (eq. 16)."},
     {"material", "allow_low_kr", "bool", "false", "", -kInf, kInf, false, false, "", "Run even where K_r < 1 (such bars break at e_p, brittle)."},
+
+    {"fatigue", "A", "float", "required", "1/cycle", 0, kInf, true, false, "", "Life a cycle of tensile strain range 1 uses up in a bar of length `length`: a bar under cycles of range D breaks after 1 / (A D^m) of them. Bars of length l0 take A (l0 / length)^(m/2 - 1), which keeps Paris' C independent of L."},
+    {"fatigue", "m", "float", "required", "", 0, 100, true, false, "", "Exponent of the strain range."},
+    {"fatigue", "threshold", "float", "0", "", 0, kInf, false, false, "", "Half-cycles of strain range at or below it use no life."},
+    {"fatigue", "gate", "float", "-", "", 0, kInf, true, false, "", "Default 1 % of the bar's e_p. A peak or valley of a bar's tensile strain counts once the strain has come back from it by more than this: smaller oscillations (ringing) are not cycles."},
+    {"fatigue", "count_every", "integer", "10", "steps", 1, 1e6, false, false, "", "The strains are sampled for the count every this many steps: a turning point is found to within the strain's change over that many steps (time steps are far shorter than any load cycle; ringing is kept out by the gate)."},
+    {"fatigue", "length", "float", "lattice.L", "m", 0, kInf, true, false, "", "The bar length A is given for."},
 
     {"field", "type", "string", "required", "", -kInf, kInf, false, false, "\"linear\", \"table\", \"weibull\"", "A material property that varies per bar (`E = { type = ... }`), evaluated at the bar's centre; see docs/model.md for how e_p, e_r, K_r and Gf then follow."},
     {"field", "axis", "string", "\"z\"", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "linear, table: the axis of the grading."},
@@ -140,7 +147,8 @@ std::string case_format_markdown() {
       "`src/io/case_keys.cpp` (`ldem case-format` prints it). Unknown keys are errors, and so\n"
       "are keys that do not apply to their table's kind (the meanings below say which: `t_start`\n"
       "on a `ramp` term, `courant` without `rule = \"paper\"`, `at` on a reaction probe).\n"
-      "Tables: `[case]`, `[lattice]`, `[material]`, `[time]`, `[output]`, `[analysis]`; arrays\n"
+      "Tables: `[case]`, `[lattice]`, `[material]`, `[fatigue]` (with `law =\n"
+      "\"bilinear_fatigue\"` only), `[time]`, `[output]`, `[analysis]`; arrays\n"
       "of tables:\n"
       "`[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`, `[[precrack]]`, `[[probe]]`;\n"
       "a velocity or load may carry `function = [{ type = ..., ... }, ...]`, whose terms are\n"

@@ -49,7 +49,7 @@ std::vector<std::string> split_choices(const std::string& choices) {
   return out;
 }
 
-const char* kTopTables[] = {"case", "lattice", "material", "time", "output", "analysis"};
+const char* kTopTables[] = {"case", "lattice", "material", "fatigue", "time", "output", "analysis"};
 const char* kArrayTables[] = {"node_set", "fixed", "velocity", "load", "precrack", "probe"};
 
 class Reader {
@@ -573,6 +573,29 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     r.fail(nullptr, "material", "missing required table [material]");
   r.check_known(mat, "material", "material.");
   c.law = r.get_string(mat, "material", "law", "material.");
+  {
+    const toml::table& fat = table("fatigue");
+    const bool with_table = root.contains("fatigue");
+    if (c.law == "bilinear_fatigue" && !with_table)
+      r.fail(mat.get("law"), "material.law",
+             "law = \"bilinear_fatigue\" needs a [fatigue] table (A, m; docs/case-format.md)");
+    if (c.law != "bilinear_fatigue" && with_table)
+      r.fail(&fat, "fatigue",
+             fmt::format("a [fatigue] table applies to law = \"bilinear_fatigue\", not \"{}\"",
+                         c.law));
+    if (with_table) {
+      r.check_known(fat, "fatigue", "fatigue.");
+      FatigueSpec f;
+      f.A = r.get_float(fat, "fatigue", "A", "fatigue.");
+      f.m = r.get_float(fat, "fatigue", "m", "fatigue.");
+      f.threshold = r.get_float(fat, "fatigue", "threshold", "fatigue.");
+      f.gate = r.opt_float(fat, "fatigue", "gate", "fatigue.").value_or(0.0);
+      f.length = r.has(fat, "length") ? *r.opt_float(fat, "fatigue", "length", "fatigue.") : c.L;
+      f.count_every =
+          static_cast<std::uint64_t>(r.get_int(fat, "fatigue", "count_every", "fatigue."));
+      c.material.fatigue = f;
+    }
+  }
   const double extent[3] = {c.nx * c.L, c.ny * c.L, c.nz * c.L};
   // A property given as a field keeps a representative value in the MaterialSpec (the mean,
   // or the mean of the grading's values) for the checks and reports made with one number.

@@ -8,12 +8,24 @@
 #include "material/bar_law_bilinear.hpp"
 
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace ldem {
+
+// The fatigue constants of `law = "bilinear_fatigue"` (bar_law_fatigue.hpp), as a case gives
+// them: A for bars of length `length`.
+struct FatigueSpec {
+  double A = 0.0;         // life used per cycle at a strain range of 1 [1/cycle]
+  double m = 1.0;         // exponent of the strain range
+  double threshold = 0.0; // strain ranges at or below it use no life
+  double gate = 0.0;      // hysteresis of the turning points of the strain
+  double length = 0.0;    // the bar length A is given for [m]
+  std::uint64_t count_every = 10; // steps between two samples of the strains for the count
+};
 
 struct MaterialSpec {
   double E = 0.0;            // Young's modulus [Pa]
@@ -28,6 +40,7 @@ struct MaterialSpec {
   std::optional<double> e_r;
   bool single_ratio = false; // use the paper's single A^f/A = 0.34 for both kinds (eq. 16)
   bool allow_low_kr = false; // accept K_r < 1 (unstable softening; the user asked for it)
+  std::optional<FatigueSpec> fatigue; // law = "bilinear_fatigue" only
 };
 
 // Optional per-bar values (one entry per bar, or empty for "uniform").

@@ -344,11 +344,13 @@ void SubdomainRun::append_owned_row_keys(EnergyRows& rows) const {
 void SubdomainRun::append_owned_energy_rows(EnergyRows& rows) const {
   const auto& u = sim_.report_bar_elastic();
   const auto& d = sim_.report_bar_damage();
+  const auto& f = sim_.report_bar_fatigue();
   const auto& kin = sim_.report_node_kinetic();
   for_each_owned_row(
       [&](std::size_t r, double key) {
         rows.elastic.push_back(u[r]);
         rows.damage.push_back(d[r]);
+        rows.fatigue.push_back(f[r]);
         rows.bar_keys.push_back(key);
       },
       [&](std::size_t r) { rows.kinetic.push_back(kin[r]); });

@@ -119,7 +119,7 @@ Conditions subdomain_conditions(const Subdomain& sub, const Lattice& whole, cons
 // bits of one process. The kinetic energy per node row is summed exactly (ExactSum), in any
 // order, as one process sums it.
 struct EnergyRows {
-  std::vector<double> elastic, damage, bar_keys; // per bar row
+  std::vector<double> elastic, damage, fatigue, bar_keys; // per bar row
   std::vector<double> kinetic;                   // per node row
 };
 // The order in which to visit rows whose keys are `keys` (a permutation that sorts them).

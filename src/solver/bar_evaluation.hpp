@@ -13,6 +13,25 @@
 
 namespace ldem {
 
+// Whether a law counts strain cycles (and books what bars whose life runs out release).
+// Such a law names its arrays of life, released energy, dissipation before the life ran out,
+// last turning point and extreme (kLife, kReleased, kDissipatedBefore, kTurn, kExtreme), and
+// has count(), counting() and release() (bar_law_fatigue.hpp).
+template <class Law>
+concept kCountsCycles =
+    requires(const Law law, typename Law::State s, double x, double& t, Stretch g) {
+      { Law::count(Law::fatigue_constants(std::declval<const BarTable&>(), 0), x, t, t) }
+          -> std::same_as<double>;
+      { law.counting(s) } -> std::same_as<bool>;
+      law.release(x, x, x, g, s).released;
+      Law::kLife;
+      Law::kReleased;
+      Law::kDissipatedBefore;
+      Law::kTurn;
+      Law::kExtreme;
+      Law::kNewLife;
+    };
+
 // The strain up to which a pristine bar of each family stays a linear spring, for the
 // family's constants (the intact fast path's, which is off where the material varies per bar).
 template <class Law> std::array<double, kFamilies> elastic_limits(const BarTable& table) {
@@ -30,6 +49,7 @@ template <class Law> void mark_damaged_rows(SimulationCore& core) {
   core.row_damaged.assign(rows, 0);
   core.row_ratio.assign(rows, kUnknown);
   core.row_dissipated.assign(rows, 0.0);
+  core.row_fatigue.assign(rows, 0.0);
   core.row_history_changed.assign(rows, 1); // the states may all be new
   const bool per_bar = core.table.per_bar();
   for (std::size_t r = 0; r < rows; ++r) {
@@ -63,11 +83,15 @@ void init_states(SimulationCore& core, const std::vector<index_t>& precracked) {
       Law::write(states.data(), i, law.initial());
     }
   }
+  if constexpr (kCountsCycles<Law>)
+    std::fill(core.states[Law::kLife].begin(), core.states[Law::kLife].end(), Law::kNewLife);
   const auto all = core.state_rows<kStates>(0);
   for (index_t b : precracked) {
     if (b >= nb)
       throw InputError(fmt::format("pre-crack: bar {} does not exist (lattice has {})", b, nb));
     Law::write(all.data(), b, Law::precracked());
+    if constexpr (kCountsCycles<Law>)
+      core.states[Law::kLife][b] = 0.0; // nothing left to count
   }
 }
 
@@ -140,6 +164,15 @@ Simulation::BarEnergies law_row_energies(const SimulationCore& core, std::size_t
       sums.elastic += eu[i];
     sums.damage += ed[i];
   }
+  if constexpr (kCountsCycles<Law>) {
+    // What the row's bars whose lives ran out released then, and had dissipated before.
+    const double* released = core.states[Law::kReleased].data() + core.first_bar(r);
+    const double* before = core.states[Law::kDissipatedBefore].data() + core.first_bar(r);
+    for (index_t i = 0; i < n; ++i) {
+      sums.fatigue += released[i];
+      sums.damage += before[i];
+    }
+  }
   return sums;
 }
 
@@ -154,15 +187,19 @@ template <class Law> Simulation::BarEnergies report_bar_energies(SimulationCore&
         return (core.row_damaged[r] || per_bar) && core.row_history_changed[r];
       },
       [&](std::size_t r) {
-        core.row_dissipated[r] = law_row_energies<Law>(core, r, false).damage;
+        const Simulation::BarEnergies e = law_row_energies<Law>(core, r, false);
+        core.row_dissipated[r] = e.damage;
+        core.row_fatigue[r] = e.fatigue;
         core.row_history_changed[r] = 0;
       });
   Simulation::BarEnergies out;
   // Row order: the same for any thread count.
   for (std::size_t r = 0; r < core.layout.bar_rows.size(); ++r) {
     core.energy_rows_d[r] = core.row_damaged[r] || per_bar ? core.row_dissipated[r] : 0.0;
+    core.energy_rows_f[r] = core.row_damaged[r] || per_bar ? core.row_fatigue[r] : 0.0;
     out.elastic += core.energy_rows_u[r];
     out.damage += core.energy_rows_d[r];
+    out.fatigue += core.energy_rows_f[r];
   }
   return out;
 }
@@ -179,6 +216,7 @@ template <class Law> Simulation::BarEnergies bar_energies(const SimulationCore& 
   for (const Simulation::BarEnergies& e : rows) { // row order: the same for any thread count
     out.elastic += e.elastic;
     out.damage += e.damage;
+    out.fatigue += e.fatigue;
   }
   return out;
 }

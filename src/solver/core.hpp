@@ -102,9 +102,10 @@ struct SimulationCore {
   // Per-row partial sums (deterministic reductions).
   std::vector<double> row_damping, row_load_mid, row_load_half, row_kinetic;
   std::vector<double> energy_rows_u, energy_rows_d; // per-row sums of the last report
+  std::vector<double> energy_rows_f;                // fatigue (laws that count cycles)
   // Per bar row: the dissipated energy of its bars when last summed, and whether a state of
   // the row has changed since (set by the bar pass and by mark_damaged_rows).
-  std::vector<double> row_dissipated;
+  std::vector<double> row_dissipated, row_fatigue;
   std::vector<std::uint8_t> row_history_changed;
   mutable std::vector<std::uint8_t> snapshot_by_law; // bar_snapshot: intact rows past e_lim now
   mutable std::vector<std::size_t> law_rows;         // the rows taken through the bar law

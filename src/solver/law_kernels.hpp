@@ -6,6 +6,7 @@
 
 #include "material/bar_law.hpp"
 #include "solver/bar_evaluation.hpp"
+#include "solver/cycle_count.hpp"
 #include "solver/walk.hpp"
 
 #include <span>
@@ -30,6 +31,9 @@ struct LawKernels {
   Vec3 (*node_force)(const SimulationCore&, index_t);
   double (*bar_force)(const SimulationCore&, index_t);
   BarState (*bar_state)(const SimulationCore&, index_t);
+  // Laws with a fatigue life: the cycle count at the start of each step (cycle_count.hpp);
+  // nullptr for the others.
+  void (*count_cycles)(SimulationCore&);
 };
 
 template <class Law> void advance(SimulationCore& core, bool damped, bool loads, bool report) {
@@ -64,7 +68,8 @@ template <BarLaw Law> const LawKernels& law_kernels() {
                                   &internal_forces<Law>,
                                   &node_force<Law>,
                                   &bar_force<Law>,
-                                  &bar_state<Law>};
+                                  &bar_state<Law>,
+                                  kCountsCycles<Law> ? &count_cycles<Law> : nullptr};
   return kernels;
 }
 

@@ -2,13 +2,15 @@
 #include "solver/laws.hpp"
 
 #include "material/bar_law_bilinear.hpp"
+#include "material/bar_law_fatigue.hpp"
 #include "solver/law_kernels.hpp"
 
 namespace ldem {
 
 namespace {
 
-const LawKernels* const kLaws[] = {&law_kernels<BilinearLaw>()};
+const LawKernels* const kLaws[] = {&law_kernels<BilinearLaw>(),
+                                   &law_kernels<BilinearFatigueLaw>()};
 
 } // namespace
 

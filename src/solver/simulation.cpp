@@ -159,6 +159,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     sc.resize(8 * c.scratch_stride);
   c.energy_rows_u.assign(c.layout.bar_rows.size(), 0.0);
   c.energy_rows_d.assign(c.layout.bar_rows.size(), 0.0);
+  c.energy_rows_f.assign(c.layout.bar_rows.size(), 0.0);
   c.law_rows.reserve(c.layout.bar_rows.size());
   const std::size_t nrows = c.layout.node_rows.size();
   c.row_damping.assign(nrows, 0.0);
@@ -201,6 +202,9 @@ const Conditions& Simulation::conditions() const {
 std::string_view Simulation::law_name() const {
   return law_->name;
 }
+bool Simulation::counts_cycles() const {
+  return law_->count_cycles != nullptr;
+}
 std::span<const StateArray> Simulation::bar_state_arrays() const {
   return law_->state_arrays;
 }
@@ -212,6 +216,9 @@ const std::vector<double>& Simulation::report_bar_elastic() const {
 }
 const std::vector<double>& Simulation::report_bar_damage() const {
   return core_->energy_rows_d;
+}
+const std::vector<double>& Simulation::report_bar_fatigue() const {
+  return core_->energy_rows_f;
 }
 const std::vector<double>& Simulation::report_node_kinetic() const {
   return core_->row_kinetic;
@@ -441,6 +448,9 @@ void Simulation::step(bool report) {
       c.bc.imposed_v_old[v][q] = half_step_velocity(nodes[q]);
   }
   const bool damped = c.opt.damping > 0.0, loads = !c.cond.loads.empty();
+  // A law with a fatigue life counts the strain at u_n (a distributed run's halo is current).
+  if (law_->count_cycles)
+    law_->count_cycles(c);
   // The law's walk, in the specialisation of the node update for this step.
   law_->advance(c, damped, loads, energies);
   apply_velocities(c, t, energies);
@@ -471,7 +481,8 @@ void Simulation::step(bool report) {
     c.report = energy_report(
         t, c.report_work.value(), elastic, kinetic.value(), damage, 0.5 * c.report_damping2.value(),
         c.ledger.initial(),
-        balance_floor(c.table.ranges().E[1], c.table.ranges().e_p[1], c.lat.volume()));
+        balance_floor(c.table.ranges().E[1], c.table.ranges().e_p[1], c.lat.volume()),
+        bars.fatigue);
   }
   c.ledger.work().add(load_mid);
   c.ledger.damping().add(damping);

@@ -149,6 +149,8 @@ public:
   // The bar law (SolverOptions::law): its name, and its per-bar state arrays by name.
   std::string_view law_name() const;
   std::span<const StateArray> bar_state_arrays() const;
+  // Whether the law has a fatigue life (its energies then include fatigue_dissipated).
+  bool counts_cycles() const;
 
   // Replaces dt before the first step, the half-step velocities kept. Throws InputError after
   // the first step, or for a dt that is not positive or above the stable limit.
@@ -174,6 +176,7 @@ public:
   // (the kinetic energy plus that of imposed-velocity DOF).
   const std::vector<double>& report_bar_elastic() const;
   const std::vector<double>& report_bar_damage() const;
+  const std::vector<double>& report_bar_fatigue() const; // zeros unless the law counts cycles
   const std::vector<double>& report_node_kinetic() const;
   index_t bar_row_plane(std::size_t r) const;
   index_t bar_row_line(std::size_t r) const;
@@ -239,6 +242,7 @@ public:
   double stored_energy() const;
   struct BarEnergies {
     double elastic = 0.0, damage = 0.0;
+    double fatigue = 0.0; // released by bars whose fatigue life ran out
   };
   // Elastic and dissipated energy of all bars, every bar through the bar law, summed row by
   // row (deterministic): the reference the report steps' energies are tested against.

@@ -350,17 +350,23 @@ def energy_png(d):
                                   gridspec_kw={"height_ratios": [3, 1]})
     labels = {"external_work": "external work", "elastic": "elastic", "kinetic": "kinetic",
               "damage_dissipated": "damage", "damping_dissipated": "damping"}
+    # The fatigue law's column: the energy bars held when their fatigue life ran out.
+    fatigue = "fatigue_dissipated" in rows[0]
+    if fatigue:
+        labels["fatigue_dissipated"] = "fatigue"
     for key, lab in labels.items():
         ax.plot(t, [float(r[key]) for r in rows], label=lab)
-    total = [float(r["elastic"]) + float(r["kinetic"]) + float(r["damage_dissipated"])
-             + float(r["damping_dissipated"]) for r in rows]
-    ax.plot(t, total, "k--", lw=0.8, label="elastic + kinetic + damage + damping")
+    held = [k for k in labels if k != "external_work"]
+    total = [sum(float(r[k]) for k in held) for r in rows]
+    ax.plot(t, total, "k--", lw=0.8,
+            label=" + ".join(labels[k] for k in held))
     ax.set_ylabel("energy [J]")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     ax2.semilogy(t, [max(float(r["balance_error"]), 1e-16) for r in rows], "k-", lw=0.8)
     ax2.set_ylabel("relative\nbalance error")
-    ax2.set_title("|W + E0 - (U + K + D + Dc)| / (W + E0)", fontsize=8)
+    ax2.set_title("|W + E0 - (U + K + D + Dc{})| / (W + E0)".format(" + F" if fatigue else ""),
+                  fontsize=8)
     ax2.set_xlabel("time [s]")
     ax2.grid(alpha=0.3)
     save(fig, os.path.join(d, "energy.png"))
