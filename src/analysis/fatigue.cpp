@@ -9,6 +9,7 @@
 #include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 #include <fmt/format.h>
+#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -146,6 +147,16 @@ double CyclicLoad::range_at(double time) const {
   return *mx - *mn;
 }
 
+double CyclicLoad::cycles_at(double time) const {
+  double J = 0.0;
+  const auto at = std::lower_bound(row_t.begin(), row_t.end(), time);
+  if (at != row_t.end())
+    J = jumped[static_cast<std::size_t>(at - row_t.begin())];
+  else if (!jumped.empty())
+    J = jumped.back();
+  return (time - t_constant) * frequency + J;
+}
+
 FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
                                 const std::vector<BarEvent>& broken, const FrontOptions& fo,
                                 const CyclicLoad& load, const FatigueOptions& o, double t_end) {
@@ -154,7 +165,7 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
   r.front = damage_front(softening, fo);
   r.rupture_front = damage_front(broken, fo);
   const double period = 1.0 / load.frequency;
-  auto N_of = [&](double t) { return (t - load.t_constant) * load.frequency; };
+  auto N_of = [&](double t) { return load.cycles_at(t); };
   auto a_of = [&](double t) { return front_at(r.front, fo.tip, t); };
   r.a_at_constant = a_of(load.t_constant);
 
@@ -201,9 +212,11 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
                          where, w0, w1_in);
     return r;
   }
+  std::vector<double> rep_t;
   for (std::size_t i = 0; i < o.points; ++i) {
     const double t =
         w0 + (w1_in - w0) * static_cast<double>(i) / static_cast<double>(o.points - 1);
+    rep_t.push_back(t);
     r.rep_N.push_back(N_of(t));
     r.rep_a.push_back(a_of(t));
   }
@@ -215,7 +228,7 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
     row.a = 0.5 * (r.rep_a[i] + r.rep_a[i + 1]);
     row.da_dN = (r.rep_a[i + 1] - r.rep_a[i]) / dN;
     const double s = row.a / o.b;
-    const double t_mid = load.t_constant + row.N / load.frequency;
+    const double t_mid = 0.5 * (rep_t[i] + rep_t[i + 1]); // (N is not linear in t with jumps)
     row.delta_K = s > 0.0 && s <= kTadaMaxRatio * (1.0 + 1e-12)
                       ? load.range_at(t_mid) * std::sqrt(std::numbers::pi * row.a) *
                             tada_edge_crack_factor(s)
@@ -415,6 +428,26 @@ std::string fatigue_report(const FatigueAnalysis& r) {
   return s;
 }
 
+namespace {
+// energy.csv's row times and jumped_cycles column into `load`, when the run jumped cycles.
+void read_jumped_cycles(const std::string& path, CyclicLoad& load) {
+  std::ifstream in(path);
+  std::string line;
+  if (!std::getline(in, line) || !line.ends_with(",jumped_cycles"))
+    return;
+  while (std::getline(in, line)) {
+    if (line.empty())
+      continue;
+    try {
+      load.row_t.push_back(std::stod(line.substr(0, line.find(','))));
+      load.jumped.push_back(std::stod(line.substr(line.rfind(',') + 1)));
+    } catch (const std::exception&) {
+      throw InputError(fmt::format("{}: expected numbers, got the row \"{}\"", path, line));
+    }
+  }
+}
+} // namespace
+
 FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& window_override) {
   const RunGeometry rg = read_run_geometry(dir, "fatigue analysis");
   const toml::table& c = rg.resolved;
@@ -452,7 +485,8 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
                                  window));
   o.from_first_cycle = window == "cycles";
   const std::string wanted = an ? (*an)["fatigue_load"].value_or(std::string()) : std::string();
-  const CyclicLoad load = read_cyclic_load(rg, wanted, t_end);
+  CyclicLoad load = read_cyclic_load(rg, wanted, t_end);
+  read_jumped_cycles(dir + "/energy.csv", load);
 
   const auto softening = to_bar_events(read_bar_events(dir, rg, "softening"), g.a_lo);
   const auto broken = to_bar_events(read_bar_events(dir, rg, "broken"), g.a_lo);
@@ -472,8 +506,7 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   write_file(dir + "/fatigue_columns.csv", cols);
   std::string fr = "t,N,a\n";
   for (const FrontStep& s : r.front)
-    fr += fmt::format("{:.9g},{:.6g},{:.9g}\n", s.t, (s.t - load.t_constant) * load.frequency,
-                      s.a);
+    fr += fmt::format("{:.9g},{:.6g},{:.9g}\n", s.t, load.cycles_at(s.t), s.a);
   write_file(dir + "/fatigue_front.csv", fr);
 
   nlohmann::ordered_json j;
@@ -492,6 +525,7 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
                                            : nlohmann::ordered_json(nullptr);
   j["cycles_to_failure"] = opt_json(r.cycles_to_failure);
   j["tmax_s"] = t_end;
+  j["jumped_cycles"] = load.jumped.empty() ? 0.0 : load.jumped.back();
   j["load_frequency_hz"] = load.frequency;
   j["constant_amplitude_from_s"] = load.t_constant;
   j["stress_range_constant_pa"] = load.range_at(load.t_constant + 0.5 / load.frequency);

@@ -73,8 +73,14 @@ struct CyclicLoad {
   double t_cycles = 0.0;        // when the oscillation starts [s]
   double t_constant = 0.0;      // when the amplitude becomes constant: N = 0 [s]
   std::vector<double> t, sigma; // remote stress sampled finely enough to find each cycle's range
+  // Cycle jumping: the times of energy.csv's rows and the cycles jumped before each row's state
+  // (a jump follows its row); empty without jumps.
+  std::vector<double> row_t, jumped;
   // Stress range max - min over the load period centred on t [Pa].
   double range_at(double time) const;
+  // The cycles since the amplitude became constant at time t: (t - t_constant) f, plus the
+  // cycles jumped before t (those of the first row at or after t).
+  double cycles_at(double time) const;
 };
 
 struct FatigueOptions {

@@ -264,6 +264,29 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       if (with_simulation)
         fields.rho = evaluate_field_modules(*s.fields.rho, lat);
     }
+    if (s.material.fatigue && s.material.fatigue->jump) {
+      // The cycles a jump skips: those of the case's growing_sine terms, one frequency.
+      std::vector<const TimeFunction*> functions;
+      for (const LoadSpec& l : s.loads)
+        functions.push_back(&l.scale);
+      for (const VelocitySpec& v : s.velocities)
+        functions.push_back(&v.scale);
+      for (const TimeFunction* f : functions)
+        for (const TimeTerm& term : f->terms())
+          if (const auto* g = std::get_if<GrowingSine>(&term)) {
+            if (c.cycle && c.cycle->frequency != g->frequency)
+              throw InputError(fmt::format(
+                  "fatigue.jump: expected the cyclic loads at one frequency, got {:g} and {:g} Hz",
+                  c.cycle->frequency, g->frequency));
+            const double t_constant = g->t_start + g->n_cycles / g->frequency;
+            c.cycle = BuiltCase::LoadCycle{g->frequency,
+                                           c.cycle ? std::max(c.cycle->t_constant, t_constant)
+                                                   : t_constant};
+          }
+      if (!c.cycle)
+        throw InputError("fatigue.jump: expected a [[load]] or [[velocity]] with a "
+                         "growing_sine term (its cycles are what a jump skips), got none");
+    }
     c.lattice = lat;
     c.conditions = cond;
     c.options.step = s.step;
@@ -331,7 +354,15 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
                             {"m", f->m},
                             {"threshold", f->threshold},
                             {"length", f->length},
-                            {"count_every", static_cast<std::int64_t>(f->count_every)}});
+                            {"count_every", static_cast<std::int64_t>(f->count_every)},
+                            {"jump", f->jump}});
+  if (const auto& f = s.material.fatigue; f && f->jump) {
+    toml::table& t = *root["fatigue"].as_table();
+    t.insert("jump_window", static_cast<std::int64_t>(f->jump_window));
+    t.insert("jump_breaks", static_cast<std::int64_t>(f->jump_breaks));
+    t.insert("jump_max", f->jump_max);
+    t.insert("jump_fraction", f->jump_fraction);
+  }
   if (const auto& f = s.material.fatigue) {
     // The gate as given, or the default as a strain range: 1 % of e_p, its range over the bars.
     toml::table& t = *root["fatigue"].as_table();

@@ -31,6 +31,12 @@ struct BuiltCase {
   std::optional<Lattice> lattice;
   Conditions conditions;
   SolverOptions options;
+  // Cycle jumping ([fatigue] jump = true): the cyclic load's frequency [Hz] and the time from
+  // which its amplitude is constant (its growing_sine's start plus n_cycles periods) [s].
+  struct LoadCycle {
+    double frequency = 0.0, t_constant = 0.0;
+  };
+  std::optional<LoadCycle> cycle;
 };
 
 // The node set named `name` among `sets`; throws InputError when there is none.

@@ -301,12 +301,15 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
   std::string case_path = st.case_path;
   broadcast_from_first(case_path);
   // The run's options, which every process follows (a checkpoint is written by all of them).
-  double options[3] = {st.plots ? 1.0 : 0.0, static_cast<double>(st.checkpoint_every),
-                       st.checkpoint_seconds};
-  broadcast_from_first(options, 3);
+  // (And cycle jumping's progress, which every process follows alike.)
+  double options[5] = {st.plots ? 1.0 : 0.0, static_cast<double>(st.checkpoint_every),
+                       st.checkpoint_seconds, st.jumped_cycles, st.window_start};
+  broadcast_from_first(options, 5);
   st.plots = options[0] != 0.0;
   st.checkpoint_every = static_cast<std::uint64_t>(options[1]);
   st.checkpoint_seconds = options[2];
+  st.jumped_cycles = options[3];
+  st.window_start = options[4];
   if (!agreed([&] { c = build_case(case_path, nullptr, process_count() == 1); }))
     return 2;
   const std::unique_ptr<RunBody> body = make_body(c, {grid_y, grid_z});

@@ -156,6 +156,67 @@ std::string RunBody::read_checkpoint(const std::string& path) {
   return h.meta;
 }
 
+namespace {
+// The index of the law's state array `name`; throws std::logic_error for a law without it.
+std::size_t state_array(const Simulation& s, std::string_view name) {
+  const auto arrays = s.bar_state_arrays();
+  for (std::size_t a = 0; a < arrays.size(); ++a)
+    if (arrays[a].name == name)
+      return a;
+  throw std::logic_error(fmt::format("the bar law {} has no state array {}", s.law_name(), name));
+}
+} // namespace
+
+void RunBody::mark_lives() {
+  Simulation& s = sim();
+  const std::span<double> life = s.bar_state_array(state_array(s, "life"));
+  const std::span<double> mark = s.bar_state_array(state_array(s, "life_at_window"));
+  std::copy(life.begin(), life.end(), mark.begin());
+}
+
+double RunBody::jump_cycles(std::uint64_t breaks, double window, double cap, double fraction) {
+  Simulation& s = sim();
+  const std::span<double> life = s.bar_state_array(state_array(s, "life"));
+  const std::span<double> mark = s.bar_state_array(state_array(s, "life_at_window"));
+  // Each owned bar's cycles to the end of its life at its rate; the breaks + 1 fewest.
+  std::vector<double> mine;
+  for (const Span& sp : bar_spans(true))
+    for (index_t b = sp.local_first; b < sp.local_first + sp.count; ++b) {
+      const double per_cycle = (mark[b] - life[b]) / window;
+      if (per_cycle > 0.0 && life[b] > 0.0 && s.bar_state(b) != BarState::Broken)
+        mine.push_back(life[b] / per_cycle);
+    }
+  const auto keep = static_cast<std::ptrdiff_t>(
+      std::min<std::uint64_t>(breaks + 1, static_cast<std::uint64_t>(mine.size())));
+  std::partial_sort(mine.begin(), mine.begin() + keep, mine.end());
+  mine.resize(static_cast<std::size_t>(keep));
+  std::vector<double> all = gather_on_first(mine);
+  double cycles = 0.0;
+  if (rank_ == 0) {
+    std::sort(all.begin(), all.end());
+    // A bar with r cycles left reaches its end within a jump of n >= r cycles: the jump stays
+    // below the (breaks + 1)-th fewest.
+    cycles = all.size() > breaks ? std::ceil(all[breaks]) - 1.0 : cap;
+    if (!all.empty()) // the fewest cycles left bound the fraction of a life used
+      cycles = std::min(cycles, std::floor(fraction * all[0]));
+    cycles = std::clamp(cycles, 0.0, std::floor(cap));
+  }
+  broadcast_from_first(&cycles, 1);
+  return cycles;
+}
+
+void RunBody::jump_lives(double cycles, double window) {
+  Simulation& s = sim();
+  const std::span<double> life = s.bar_state_array(state_array(s, "life"));
+  const std::span<double> mark = s.bar_state_array(state_array(s, "life_at_window"));
+  for (std::size_t b = 0; b < life.size(); ++b) {
+    const double per_cycle = (mark[b] - life[b]) / window;
+    if (per_cycle > 0.0 && life[b] > 0.0)
+      life[b] -= per_cycle * cycles;
+    mark[b] = life[b];
+  }
+}
+
 std::array<std::uint64_t, 2> RunBody::softening_and_broken() {
   double counts[2] = {0, 0};
   const Simulation& s = sim();

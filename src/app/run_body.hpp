@@ -88,6 +88,17 @@ public:
   std::string read_checkpoint(const std::string& path);
   // The body's bars softening and broken now. Collective.
   std::array<std::uint64_t, 2> softening_and_broken();
+  // Cycle jumping (a law with a fatigue life; docs/model.md, "Cycle jumping"). mark_lives()
+  // starts a resolved window: each bar's life now is kept. jump_cycles() is the number of whole
+  // cycles a jump may take once `window` cycles have been resolved since: each bar that still
+  // counts used (life at the mark - life) / window per cycle, and the jump leaves at most
+  // `breaks` of them at the end of their life, and is at most `cap` (0 when a bar would reach
+  // its end within a cycle), and uses at most `fraction` of any such bar's remaining life.
+  // Collective. jump_lives() moves every bar's life on by `cycles` at that rate, and marks
+  // again.
+  void mark_lives();
+  double jump_cycles(std::uint64_t breaks, double window, double cap, double fraction);
+  void jump_lives(double cycles, double window);
   // The displacement of a node of the body, on the first process. Collective.
   virtual Vec3 displacement(index_t node) = 0;
   // VTU snapshots: prepare_snapshots() makes the writer (what does not change during the run),

@@ -91,6 +91,8 @@ std::string run_state_bytes(const RunState& st) {
   put(meta, static_cast<std::uint8_t>(st.plots));
   put(meta, st.checkpoint_every);
   put(meta, st.checkpoint_seconds);
+  put(meta, st.jumped_cycles);
+  put(meta, st.window_start);
   return meta;
 }
 
@@ -124,6 +126,8 @@ RunState parse_run_state(const std::string& meta) {
   st.plots = plots != 0;
   get(meta, pos, st.checkpoint_every);
   get(meta, pos, st.checkpoint_seconds);
+  get(meta, pos, st.jumped_cycles);
+  get(meta, pos, st.window_start);
   return st;
 }
 
@@ -187,10 +191,14 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   const auto energy = open(kLogs[0], 0), events = open(kLogs[1], 1), probes = open(kLogs[2], 2);
   // A law with a fatigue life adds the energy its broken bars held (a column before the error).
   const bool fatigue_column = body.counts_cycles();
+  // Cycle jumping adds the cycles jumped before each row's state (after the error).
+  const std::optional<FatigueSpec>& fatigue = s.material.fatigue;
+  const bool jumping = fatigue && fatigue->jump && c.cycle.has_value();
   if (fresh && writes) {
     energy->write(fmt::format("time,external_work,elastic,kinetic,damage_dissipated,"
-                              "damping_dissipated,{}balance_error\n",
-                              fatigue_column ? "fatigue_dissipated," : ""));
+                              "damping_dissipated,{}balance_error{}\n",
+                              fatigue_column ? "fatigue_dissipated," : "",
+                              jumping ? ",jumped_cycles" : ""));
     events->write("bar,event,time,x,y,z\n");
     std::string head = "time";
     for (const ProbeSpec& p : s.probes)
@@ -359,12 +367,14 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       probe_row();
       flush_events();
       const EnergyReport& r = body.last_report();
-      energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}{:.6g}\n", r.time,
+      energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}{:.6g}{}\n", r.time,
                                 r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
                                 r.damping_dissipated,
                                 fatigue_column ? fmt::format("{:.9g},", r.fatigue_dissipated)
                                                : std::string(),
-                                r.balance_error));
+                                r.balance_error,
+                                jumping ? fmt::format(",{:.17g}", st.jumped_cycles)
+                                        : std::string()));
       if (r.external_work + r.initial >
               1e-6 * (r.elastic + r.kinetic + r.damage_dissipated + r.fatigue_dissipated) &&
           n > 0)
@@ -372,6 +382,30 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       if (std::chrono::steady_clock::now() - last_flush > std::chrono::seconds(1))
         flush_live();
       progress->update(n, r.time, st.n_broken, r.balance_error, n == steps);
+    }
+    // Cycle jumping, at report steps once the load's amplitude is constant, on every process
+    // alike: a window of resolved cycles is marked; at the first report past its end, the
+    // lives move on by as many whole cycles as the rule allows, at the rate each bar used its
+    // life over the window's whole cycles, and a new window starts. The first window after
+    // the amplitude became constant only settles (its start still has the growth's
+    // transient).
+    if (jumping && report) {
+      const double t_row = static_cast<double>(n) * body.dt();
+      const double f = c.cycle->frequency;
+      const auto window = static_cast<double>(fatigue->jump_window);
+      if (t_row >= c.cycle->t_constant && st.window_start < 0.0) {
+        body.mark_lives();
+        st.window_start = t_row;
+      } else if (st.window_start >= 0.0 && (t_row - st.window_start) * f >= window) {
+        const double resolved = std::round((t_row - st.window_start) * f);
+        const bool settled = st.window_start >= c.cycle->t_constant + (window - 0.5) / f;
+        const double jump = settled ? body.jump_cycles(fatigue->jump_breaks, resolved,
+                                                       fatigue->jump_max, fatigue->jump_fraction)
+                                    : 0.0;
+        body.jump_lives(jump, resolved);
+        st.jumped_cycles += jump;
+        st.window_start = t_row;
+      }
     }
   }
   if (signal)
@@ -404,14 +438,23 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
                   "  \"process_grid\": [1, {}, {}],\n  \"bytes_per_module\": {:.1f},\n"
                   "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
                   "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
-                  "  \"interrupted\": {},\n  \"stopped_by\": {},\n  \"analysis\": {{}}\n}}\n",
+                  "  \"interrupted\": {},\n  \"stopped_by\": {},\n{}  \"analysis\": {{}}\n}}\n",
                   st.case_path, s.title, lat.num_nodes(), lat.num_bars(), simulated, body.dt(),
                   body.stable_step().dt, static_cast<double>(simulated) * body.dt(), wall,
                   static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
                   omp_get_max_threads(), process_count(), grid.py, grid.pz,
                   body.numbers().bytes_per_module, st.max_balance, softened,
                   broken - c.precracked.size(), c.precracked.size(), signal ? "true" : "false",
-                  stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\""));
+                  stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\"",
+                  jumping ? fmt::format("  \"jumped_cycles\": {:.17g},\n"
+                                        "  \"cycles_at_constant_amplitude\": {:.17g},\n",
+                                        st.jumped_cycles,
+                                        st.jumped_cycles +
+                                            c.cycle->frequency *
+                                                std::max(0.0, static_cast<double>(simulated) *
+                                                                      body.dt() -
+                                                                  c.cycle->t_constant))
+                          : std::string()));
   if (!blow_up.empty()) {
     fmt::print(stderr, "ldem: error: {}\n", blow_up);
     return 3;

@@ -33,6 +33,10 @@ struct RunState {
   bool plots = true;
   std::uint64_t checkpoint_every = 0;
   double checkpoint_seconds = 0.0;
+  // Cycle jumping: the cycles jumped so far, and the time at which the resolved window started
+  // (negative: none yet).
+  double jumped_cycles = 0.0;
+  double window_start = -1.0;
 };
 
 // The logs of a run, in the order of RunState::lengths.

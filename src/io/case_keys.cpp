@@ -51,6 +51,11 @@ const std::vector<KeyDecl>& case_keys() {
     {"fatigue", "threshold", "float", "0", "", 0, kInf, false, false, "", "Half-cycles of strain range at or below it use no life."},
     {"fatigue", "gate", "float", "-", "", 0, kInf, true, false, "", "Default 1 % of the bar's e_p. A peak or valley of a bar's tensile strain counts once the strain has come back from it by more than this: smaller oscillations (ringing) are not cycles."},
     {"fatigue", "count_every", "integer", "10", "steps", 1, 1e6, false, false, "", "The strains are sampled for the count every this many steps: a turning point is found to within the strain's change over that many steps (time steps are far shorter than any load cycle; ringing is kept out by the gate)."},
+    {"fatigue", "jump", "bool", "false", "", -kInf, kInf, false, false, "", "Cycle jumping, once the cyclic load has reached its constant amplitude (the end of its growing_sine's n_cycles): resolve jump_window cycles, take each bar's life used per cycle over them, and skip as many cycles as leave at most jump_breaks bars at the end of their life; then resolve again. energy.csv gains a column jumped_cycles."},
+    {"fatigue", "jump_window", "integer", "4", "cycles", 1, 1e6, false, false, "", "Load cycles resolved between two jumps (the life each bar uses per cycle is measured over them)."},
+    {"fatigue", "jump_breaks", "integer", "0", "bars", 0, 1e9, false, false, "", "At most this many bars may reach the end of their life within a jump (0: the jump stops short of the next bar's end; it then breaks while the cycles are resolved)."},
+    {"fatigue", "jump_max", "float", "1e6", "cycles", 1, 1e12, false, false, "", "The largest jump."},
+    {"fatigue", "jump_fraction", "float", "0.2", "", 0, 1, true, false, "", "A jump uses at most this fraction of any bar's remaining life, so that the rates it extrapolates change little within it (the bars' strain ranges grow as the damage ahead of a crack grows)."},
     {"fatigue", "length", "float", "lattice.L", "m", 0, kInf, true, false, "", "The bar length A is given for."},
 
     {"field", "type", "string", "required", "", -kInf, kInf, false, false, "\"linear\", \"table\", \"weibull\"", "A material property that varies per bar (`E = { type = ... }`), evaluated at the bar's centre; see docs/model.md for how e_p, e_r, K_r and Gf then follow."},

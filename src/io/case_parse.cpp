@@ -593,6 +593,17 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
       f.length = r.has(fat, "length") ? *r.opt_float(fat, "fatigue", "length", "fatigue.") : c.L;
       f.count_every =
           static_cast<std::uint64_t>(r.get_int(fat, "fatigue", "count_every", "fatigue."));
+      f.jump = r.get_bool(fat, "fatigue", "jump", "fatigue.");
+      f.jump_window =
+          static_cast<std::uint64_t>(r.get_int(fat, "fatigue", "jump_window", "fatigue."));
+      f.jump_breaks =
+          static_cast<std::uint64_t>(r.get_int(fat, "fatigue", "jump_breaks", "fatigue."));
+      f.jump_max = r.get_float(fat, "fatigue", "jump_max", "fatigue.");
+      f.jump_fraction = r.get_float(fat, "fatigue", "jump_fraction", "fatigue.");
+      if (!f.jump)
+        for (const char* k : {"jump_window", "jump_breaks", "jump_max", "jump_fraction"})
+          if (r.has(fat, k))
+            r.fail(fat.get(k), std::string("fatigue.") + k, "does not apply without jump = true");
       c.material.fatigue = f;
     }
   }

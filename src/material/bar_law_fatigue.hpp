@@ -47,14 +47,16 @@ struct BilinearFatigueLaw {
   // when its life ran out; dissipated_before: what its softening had dissipated by then (the
   // bilinear law counts nothing for an infinite history); cycle_turn and cycle_extreme: the
   // last confirmed turning point of e+ and the extreme reached since (rising while
-  // extreme >= turn). The step's kernels read the history alone and are the bilinear law's
-  // own; the count reads and writes the others.
-  static constexpr std::array<StateArray, 6> kStateArrays{{{"history", false},
+  // extreme >= turn); life_at_window: the life at the start of cycle jumping's resolved
+  // window. The step's kernels read the history alone and are the bilinear law's own; the
+  // count reads and writes the others.
+  static constexpr std::array<StateArray, 7> kStateArrays{{{"history", false},
                                                            {"life", true},
                                                            {"fatigue_released", false},
                                                            {"dissipated_before", false},
                                                            {"cycle_turn", false},
-                                                           {"cycle_extreme", false}}};
+                                                           {"cycle_extreme", false},
+                                                           {"life_at_window", false}}};
   static constexpr std::size_t kLife = 1, kReleased = 2, kDissipatedBefore = 3, kTurn = 4,
                                kExtreme = 5;
   using State = BilinearLaw::State;

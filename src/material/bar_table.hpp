@@ -25,6 +25,15 @@ struct FatigueSpec {
   double gate = 0.0;      // hysteresis of the turning points of the strain
   double length = 0.0;    // the bar length A is given for [m]
   std::uint64_t count_every = 10; // steps between two samples of the strains for the count
+  // Cycle jumping (docs/model.md, "Cycle jumping"): resolve `jump_window` load cycles, then
+  // jump as many cycles as leave at most `jump_breaks` bars at the end of their life, at most
+  // `jump_max`.
+  // A jump also uses at most `jump_fraction` of any bar's remaining life.
+  bool jump = false;
+  std::uint64_t jump_window = 4;
+  std::uint64_t jump_breaks = 0;
+  double jump_max = 1e6;
+  double jump_fraction = 0.2;
 };
 
 struct MaterialSpec {

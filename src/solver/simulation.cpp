@@ -424,6 +424,10 @@ double Simulation::bar_state_value(std::size_t array, index_t bar) const {
   return core_->states[array][bar];
 }
 
+std::span<double> Simulation::bar_state_array(std::size_t array) {
+  return core_->states[array];
+}
+
 void Simulation::restore_progress(std::uint64_t step, const Ledger::State& ledger,
                                   const EnergyReport& report, std::vector<Event> pending) {
   SimulationCore& c = *core_;

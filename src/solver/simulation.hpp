@@ -232,6 +232,9 @@ public:
   BarState bar_state(index_t bar) const;
   // The value of bar `bar` in the law's state array `array`.
   double bar_state_value(std::size_t array, index_t bar) const;
+  // The law's state array `array` (bar_state_arrays()), one value per bar, to change in place
+  // between steps (cycle jumping moves the lives on).
+  std::span<double> bar_state_array(std::size_t array);
   // Axial force of a bar at the current displacements and state [N].
   double bar_force(index_t bar) const;
 
