@@ -178,27 +178,41 @@ double RunBody::jump_cycles(std::uint64_t breaks, double window, double cap, dou
   Simulation& s = sim();
   const std::span<double> life = s.bar_state_array(state_array(s, "life"));
   const std::span<double> mark = s.bar_state_array(state_array(s, "life_at_window"));
-  // Each owned bar's cycles to the end of its life at its rate; the breaks + 1 fewest.
-  std::vector<double> mine;
+  // Each owned bar's cycles to the end of its life at its rate (the breaks + 1 fewest), and
+  // the fewest cycles in which a bar uses a whole life (1) at its rate.
+  std::vector<double> left;
+  double fastest = INFINITY;
   for (const Span& sp : bar_spans(true))
     for (index_t b = sp.local_first; b < sp.local_first + sp.count; ++b) {
       const double per_cycle = (mark[b] - life[b]) / window;
-      if (per_cycle > 0.0 && life[b] > 0.0 && s.bar_state(b) != BarState::Broken)
-        mine.push_back(life[b] / per_cycle);
+      if (per_cycle > 0.0 && life[b] > 0.0 && s.bar_state(b) != BarState::Broken) {
+        left.push_back(life[b] / per_cycle);
+        fastest = std::min(fastest, 1.0 / per_cycle);
+      }
     }
   const auto keep = static_cast<std::ptrdiff_t>(
-      std::min<std::uint64_t>(breaks + 1, static_cast<std::uint64_t>(mine.size())));
-  std::partial_sort(mine.begin(), mine.begin() + keep, mine.end());
-  mine.resize(static_cast<std::size_t>(keep));
-  std::vector<double> all = gather_on_first(mine);
+      std::min<std::uint64_t>(breaks + 1, static_cast<std::uint64_t>(left.size())));
+  std::partial_sort(left.begin(), left.begin() + keep, left.end());
+  left.resize(static_cast<std::size_t>(keep));
+  // Per process: fastest, the count of its cycles left, those.
+  std::vector<double> mine{fastest, static_cast<double>(keep)};
+  mine.insert(mine.end(), left.begin(), left.end());
+  const std::vector<double> all = gather_on_first(mine);
   double cycles = 0.0;
   if (rank_ == 0) {
-    std::sort(all.begin(), all.end());
+    std::vector<double> fewest;
+    double fastest_all = INFINITY;
+    for (std::size_t p = 0; p < all.size(); p += 2 + static_cast<std::size_t>(all[p + 1])) {
+      fastest_all = std::min(fastest_all, all[p]);
+      fewest.insert(fewest.end(), all.begin() + static_cast<std::ptrdiff_t>(p + 2),
+                    all.begin() + static_cast<std::ptrdiff_t>(p + 2 + all[p + 1]));
+    }
+    std::sort(fewest.begin(), fewest.end());
     // A bar with r cycles left reaches its end within a jump of n >= r cycles: the jump stays
-    // below the (breaks + 1)-th fewest.
-    cycles = all.size() > breaks ? std::ceil(all[breaks]) - 1.0 : cap;
-    if (!all.empty()) // the fewest cycles left bound the fraction of a life used
-      cycles = std::min(cycles, std::floor(fraction * all[0]));
+    // below the (breaks + 1)-th fewest; and no bar uses more than `fraction` of a life in it.
+    cycles = fewest.size() > breaks ? std::ceil(fewest[breaks]) - 1.0 : cap;
+    if (std::isfinite(fastest_all))
+      cycles = std::min(cycles, std::floor(fraction * fastest_all));
     cycles = std::clamp(cycles, 0.0, std::floor(cap));
   }
   broadcast_from_first(&cycles, 1);

@@ -93,7 +93,7 @@ public:
   // cycles a jump may take once `window` cycles have been resolved since: each bar that still
   // counts used (life at the mark - life) / window per cycle, and the jump leaves at most
   // `breaks` of them at the end of their life, and is at most `cap` (0 when a bar would reach
-  // its end within a cycle), and uses at most `fraction` of any such bar's remaining life.
+  // its end within a cycle), and uses at most `fraction` of a whole life (1) in any bar.
   // Collective. jump_lives() moves every bar's life on by `cycles` at that rate, and marks
   // again.
   void mark_lives();

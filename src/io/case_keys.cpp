@@ -55,7 +55,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"fatigue", "jump_window", "integer", "4", "cycles", 1, 1e6, false, false, "", "Load cycles resolved between two jumps (the life each bar uses per cycle is measured over them)."},
     {"fatigue", "jump_breaks", "integer", "0", "bars", 0, 1e9, false, false, "", "At most this many bars may reach the end of their life within a jump (0: the jump stops short of the next bar's end; it then breaks while the cycles are resolved)."},
     {"fatigue", "jump_max", "float", "1e6", "cycles", 1, 1e12, false, false, "", "The largest jump."},
-    {"fatigue", "jump_fraction", "float", "0.2", "", 0, 1, true, false, "", "A jump uses at most this fraction of any bar's remaining life, so that the rates it extrapolates change little within it (the bars' strain ranges grow as the damage ahead of a crack grows)."},
+    {"fatigue", "jump_fraction", "float", "0.2", "", 0, 1, true, false, "", "In a jump no bar uses more than this fraction of a whole life, so that the rates it extrapolates change little within it (the bars' strain ranges grow as the damage ahead of a crack grows)."},
     {"fatigue", "length", "float", "lattice.L", "m", 0, kInf, true, false, "", "The bar length A is given for."},
 
     {"field", "type", "string", "required", "", -kInf, kInf, false, false, "\"linear\", \"table\", \"weibull\"", "A material property that varies per bar (`E = { type = ... }`), evaluated at the bar's centre; see docs/model.md for how e_p, e_r, K_r and Gf then follow."},
