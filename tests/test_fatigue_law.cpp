@@ -10,12 +10,14 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fmt/format.h>
 #include <fstream>
 #include <gtest/gtest.h>
 #include <numbers>
 #include <omp.h>
 #include <random>
 #include <sstream>
+#include <unistd.h>
 
 namespace ldem {
 namespace {
@@ -353,7 +355,9 @@ std::vector<std::pair<index_t, double>> tutorial_breaks(bool jump, double cycles
 // the first two bars, here; later ones break where the damage of the first has changed the
 // strains, and the runs may part. The jumped run must have jumped (else it tests nothing).
 TEST(FatigueLaw, JumpedAndResolvedRunsBreakTheFirstBarsAtTheSameCycle) {
-  const std::string dir = (std::filesystem::temp_directory_path() / "ldem_jump_").string();
+  // (A folder of this process's own: two test runs at once must not share it.)
+  const std::string dir =
+      (std::filesystem::temp_directory_path() / fmt::format("ldem_jump_{}_", ::getpid())).string();
   const auto resolved = tutorial_breaks(false, 40.0, dir + "resolved");
   const auto jumped = tutorial_breaks(true, 40.0, dir + "jumped");
   ASSERT_GE(resolved.size(), 2u);
@@ -367,6 +371,8 @@ TEST(FatigueLaw, JumpedAndResolvedRunsBreakTheFirstBarsAtTheSameCycle) {
   text << js.rdbuf();
   EXPECT_NE(text.str().find("\"jumped_cycles\": "), std::string::npos);
   EXPECT_EQ(text.str().find("\"jumped_cycles\": 0,"), std::string::npos) << text.str();
+  std::filesystem::remove_all(dir + "resolved");
+  std::filesystem::remove_all(dir + "jumped");
 }
 
 // The fatigue analysis counts jumped cycles: N(t) = (t - t_constant) f plus the cycles jumped
