@@ -314,13 +314,24 @@ function = [{ type = "exp_rise", tau = 1e-5 }]
 #include <filesystem>
 #include <fmt/format.h>
 #include <fstream>
+#include <unistd.h>
 
 namespace ldem {
 namespace {
 
+// The case file of the running test: ldem_conditions_case.toml in a folder of its own (the
+// tests run in parallel processes, and a shared file would be rewritten under another's feet).
+std::string test_case_path() {
+  const auto* test = ::testing::UnitTest::GetInstance()->current_test_info();
+  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) /
+                                    fmt::format("ldem_{}_{}", test->name(), ::getpid());
+  std::filesystem::create_directories(dir);
+  return (dir / "ldem_conditions_case.toml").string();
+}
+
 // The message build_case gives for a case text (written to a file), or "" if it accepts it.
 std::string build_error_of(const std::string& text) {
-  const std::string path = ::testing::TempDir() + "ldem_conditions_case.toml";
+  const std::string path = test_case_path();
   std::ofstream(path) << text;
   try {
     build_case(path, nullptr, false);
@@ -415,7 +426,7 @@ box_max = [2, 2, 2]
   // A rupture strain field that falls to e_p along x is found on the bars; the error names the
   // [material] table's line (line 7 of kGood: a blank first line, four lines of [lattice], a
   // blank line).
-  const std::string path = ::testing::TempDir() + "ldem_conditions_case.toml";
+  const std::string path = test_case_path();
   std::ofstream(path) << edit(
       "e_p = 1e-4", "e_p = 1e-4\ne_r = { type = \"linear\", axis = \"x\", values = [1e-4, 1e-3] }");
   e.clear();

@@ -332,7 +332,7 @@ std::vector<std::pair<index_t, double>> tutorial_breaks(bool jump, double cycles
   while (std::getline(events, line)) {
     if (line.find(",broken,") == std::string::npos)
       continue;
-    const index_t bar = std::stoll(line.substr(0, line.find(',')));
+    const auto bar = static_cast<index_t>(std::stoul(line.substr(0, line.find(','))));
     const std::size_t at = line.find(",broken,") + 8;
     const double t = std::stod(line.substr(at, line.find(',', at) - at));
     double J = 0.0;

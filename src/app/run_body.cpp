@@ -202,10 +202,12 @@ double RunBody::jump_cycles(std::uint64_t breaks, double window, double cap, dou
   if (rank_ == 0) {
     std::vector<double> fewest;
     double fastest_all = INFINITY;
-    for (std::size_t p = 0; p < all.size(); p += 2 + static_cast<std::size_t>(all[p + 1])) {
+    for (std::size_t p = 0; p < all.size();) {
+      const auto count = static_cast<std::size_t>(all[p + 1]);
       fastest_all = std::min(fastest_all, all[p]);
       fewest.insert(fewest.end(), all.begin() + static_cast<std::ptrdiff_t>(p + 2),
-                    all.begin() + static_cast<std::ptrdiff_t>(p + 2 + all[p + 1]));
+                    all.begin() + static_cast<std::ptrdiff_t>(p + 2 + count));
+      p += 2 + count;
     }
     std::sort(fewest.begin(), fewest.end());
     // A bar with r cycles left reaches its end within a jump of n >= r cycles: the jump stays

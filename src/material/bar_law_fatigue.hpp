@@ -11,13 +11,12 @@
 //   rainflow count of such a history is the same);
 // - A_l = A (l0 / l_ref)^(m / 2 - 1) for a bar of length l0, A being given for bars of length
 //   l_ref: the scaling that keeps Paris' C independent of the module size (docs/model.md);
-// - a bar whose life is used up breaks: in tension it carries nothing from then on (in
-//   compression it still does, as a broken bar of the bilinear law), its history is frozen, and
-//   the elastic energy it held at that moment is booked as `fatigue_dissipated`, so that the
-//   energy balance still closes.
-// The counting runs at the start of each step on the current displacements (cycle_count.hpp),
-// apart from the step's kernels: a bar with life left and its history at e_p is still a linear
-// spring, and the intact fast paths take it as before.
+// - a bar whose life is used up breaks: it takes the bilinear law's broken state (nothing in
+//   tension, the undamaged stiffness in compression); the elastic energy it held at that moment
+//   is booked as `fatigue_dissipated`, so that the energy balance still closes, and what its
+//   softening had dissipated is kept apart (dissipated_before).
+// The counting runs at the start of every count_every-th step on the current displacements
+// (cycle_count.hpp), apart from the step's kernels, which see the bilinear law.
 #pragma once
 
 #include "material/bar_law_bilinear.hpp"
