@@ -116,15 +116,18 @@ grep -q "\"case\": \"$(realpath "$T/case.toml")\"" "$T/typed/summary.json" && ok
 cp "$T/case.toml" "$T/ckpt.toml"
 "$LDEM" run "$T/ckpt.toml" --out "$T/ref2" --no-plot >/dev/null 2>&1
 # Killed as soon as its first checkpoint exists (a fixed delay was either too short or too
-# long depending on the machine's load).
-"$LDEM" run "$T/ckpt.toml" --out "$T/kill" --no-plot --checkpoint-every 200 >/dev/null 2>&1 &
-pid=$!
-for _ in $(seq 2000); do
-  [ -s "$T/kill/checkpoint/state.ckpt" ] && break
-  sleep 0.01
-done
-kill -9 $pid 2>/dev/null
-wait $pid 2>/dev/null
+# long depending on the machine's load): kill_after_checkpoint CASE OUT EVERY.
+kill_after_checkpoint() {
+  "$LDEM" run "$1" --out "$2" --no-plot --checkpoint-every "$3" >/dev/null 2>&1 &
+  local pid=$!
+  for _ in $(seq 3000); do
+    [ -s "$2/checkpoint/state.ckpt" ] && break
+    sleep 0.01
+  done
+  kill -9 $pid 2>/dev/null
+  wait $pid 2>/dev/null
+}
+kill_after_checkpoint "$T/ckpt.toml" "$T/kill" 200
 : >"$T/stderr"
 if [ -s "$T/kill/checkpoint/state.ckpt" ] && "$LDEM" resume "$T/kill" --no-plot >/dev/null 2>"$T/stderr" &&
   cmp -s "$T/ref2/energy.csv" "$T/kill/energy.csv" && cmp -s "$T/ref2/events.csv" "$T/kill/events.csv" &&
@@ -145,14 +148,7 @@ same_fatigue() {
   done
 }
 same_fatigue "$T/fat2" && ok || bad "fatigue law on 1 and 2 threads"
-"$LDEM" run "$T/fatigue.toml" --out "$T/fatk" --no-plot --checkpoint-every 3000 >/dev/null 2>&1 &
-pid=$!
-for _ in $(seq 2000); do
-  [ -s "$T/fatk/checkpoint/state.ckpt" ] && break
-  sleep 0.01
-done
-kill -9 $pid 2>/dev/null
-wait $pid 2>/dev/null
+kill_after_checkpoint "$T/fatigue.toml" "$T/fatk" 3000
 if [ -s "$T/fatk/checkpoint/state.ckpt" ] && "$LDEM" resume "$T/fatk" --no-plot >/dev/null 2>"$T/stderr" &&
   same_fatigue "$T/fatk"; then ok; else bad "fatigue law resumed after a hard kill: $(cat "$T/stderr")"; fi
 # Cycle jumping: the same plate moved up and down at 1000 Hz with a long life; a run killed
@@ -163,14 +159,7 @@ sed -e 's/^e_p = 1.0e-4 .*/e_p = 1.0e-4\nlaw = "bilinear_fatigue"\n\n[fatigue]\n
   -e 's/^end = 4.0e-3 .*/end = 0.02/' -e 's/^energy_every = 50/energy_every = 100/' "$GOOD" >"$T/jump.toml"
 "$LDEM" run "$T/jump.toml" --out "$T/jump1" --no-plot >/dev/null 2>"$T/stderr" || bad "jump run: $(cat "$T/stderr")"
 grep -q '"jumped_cycles": [1-9]' "$T/jump1/summary.json" && ok || bad "no cycles jumped: $(grep jumped "$T/jump1/summary.json")"
-"$LDEM" run "$T/jump.toml" --out "$T/jumpk" --no-plot --checkpoint-every 20000 >/dev/null 2>&1 &
-pid=$!
-for _ in $(seq 3000); do
-  [ -s "$T/jumpk/checkpoint/state.ckpt" ] && break
-  sleep 0.01
-done
-kill -9 $pid 2>/dev/null
-wait $pid 2>/dev/null
+kill_after_checkpoint "$T/jump.toml" "$T/jumpk" 20000
 if [ -s "$T/jumpk/checkpoint/state.ckpt" ] && "$LDEM" resume "$T/jumpk" --no-plot >/dev/null 2>"$T/stderr" &&
   cmp -s "$T/jump1/energy.csv" "$T/jumpk/energy.csv" && cmp -s "$T/jump1/events.csv" "$T/jumpk/events.csv" &&
   grep -q "$(grep jumped_cycles "$T/jump1/summary.json")" "$T/jumpk/summary.json"; then ok; else bad "jumping run resumed after a hard kill: $(cat "$T/stderr")"; fi
