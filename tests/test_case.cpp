@@ -100,6 +100,22 @@ TEST(CaseFile, FatigueLawAndItsTable) {
   EXPECT_NE(e.find("fatigue.count_every: expected a value [1, 1e+06]"), std::string::npos) << e;
   e = error_of(with_law + "\n[fatigue]\nA = 1e10\nm = 4\nphase = 2\n");
   EXPECT_NE(e.find("fatigue.phase: unknown key"), std::string::npos) << e;
+  // The box of the bars with a fatigue life: both corners, the second at or above the first.
+  EXPECT_FALSE(c.material.fatigue->box.has_value());
+  e = error_of(with_law + "\n[fatigue]\nA = 1e10\nm = 4\nbox_min = [0, 0, 0.01]\n");
+  EXPECT_NE(e.find("fatigue.box_max: missing: box_min needs box_max"), std::string::npos) << e;
+  e = error_of(with_law + "\n[fatigue]\nA = 1e10\nm = 4\nbox_min = [0, 0, 0.02]\n"
+                          "box_max = [0.04, 0.01, 0.01]\n");
+  EXPECT_NE(e.find("fatigue.box_max: expected a corner at or above box_min [0, 0, 0.02] in x, y "
+                   "and z, got [0.04, 0.01, 0.01]"),
+            std::string::npos)
+      << e;
+  const CaseSpec b = parse_case(with_law + "\n[fatigue]\nA = 1e10\nm = 4\nbox_min = [0, 0, "
+                                           "0.01]\nbox_max = [0.04, 0.01, 0.02]\n",
+                                "case.toml");
+  ASSERT_TRUE(b.material.fatigue->box.has_value());
+  EXPECT_EQ((*b.material.fatigue->box)[0].z, 0.01);
+  EXPECT_EQ((*b.material.fatigue->box)[1].x, 0.04);
 }
 
 TEST(CaseFile, KeysThatDoNotApplyAreRefused) {
@@ -421,6 +437,18 @@ box_max = [2, 2, 2]
   EXPECT_NE(e.find(fmt::format("ldem_conditions_case.toml:{}: node_set[1]: node set \"nothing\" "
                                "(box [1, 1, 1] to [2, 2, 2]) selects no node",
                                header)),
+            std::string::npos)
+      << e;
+  // A fatigue box beside the body holds no bar's centre.
+  e = build_error_of(edit("e_p = 1e-4", "e_p = 1e-4\nlaw = \"bilinear_fatigue\"") + R"(
+[fatigue]
+A = 1e10
+m = 4
+box_min = [1, 1, 1]
+box_max = [2, 2, 2]
+)");
+  EXPECT_NE(e.find("fatigue.box_min: expected a box holding the centre of at least one bar, got "
+                   "[1, 1, 1] to [2, 2, 2] m"),
             std::string::npos)
       << e;
   // A rupture strain field that falls to e_p along x is found on the bars; the error names the

@@ -157,12 +157,19 @@ double CyclicLoad::cycles_at(double time) const {
   return (time - t_constant) * frequency + J;
 }
 
+std::vector<BarEvent> first_damage(const std::vector<BarEvent>& softening,
+                                   const std::vector<BarEvent>& broken) {
+  std::vector<BarEvent> e = softening;
+  e.insert(e.end(), broken.begin(), broken.end());
+  return e;
+}
+
 FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
                                 const std::vector<BarEvent>& broken, const FrontOptions& fo,
                                 const CyclicLoad& load, const FatigueOptions& o, double t_end) {
   FatigueAnalysis r;
   r.t_end = t_end;
-  r.front = damage_front(softening, fo);
+  r.front = damage_front(first_damage(softening, broken), fo);
   r.rupture_front = damage_front(broken, fo);
   const double period = 1.0 / load.frequency;
   auto N_of = [&](double t) { return load.cycles_at(t); };
@@ -213,19 +220,27 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
     return r;
   }
   std::vector<double> rep_t;
-  for (std::size_t i = 0; i < o.points; ++i) {
-    const double t =
-        w0 + (w1_in - w0) * static_cast<double>(i) / static_cast<double>(o.points - 1);
-    rep_t.push_back(t);
+  if (o.secant) {
+    // The front's own steps within the window. At a step the tip enters the column whose far
+    // edge is the new front, so between two steps it moves from a_i - L to a_{i+1} - L.
+    for (const FrontStep& s : r.front)
+      if (s.t >= w0 && s.t <= w1_in)
+        rep_t.push_back(s.t);
+  } else {
+    for (std::size_t i = 0; i < o.points; ++i)
+      rep_t.push_back(w0 + (w1_in - w0) * static_cast<double>(i) /
+                               static_cast<double>(o.points - 1));
+  }
+  for (const double t : rep_t) {
     r.rep_N.push_back(N_of(t));
     r.rep_a.push_back(a_of(t));
   }
   std::vector<double> dK, rate;
-  for (std::size_t i = 0; i + 1 < o.points; ++i) {
+  for (std::size_t i = 0; i + 1 < rep_t.size(); ++i) {
     FatigueRow row{};
     const double dN = r.rep_N[i + 1] - r.rep_N[i];
     row.N = 0.5 * (r.rep_N[i] + r.rep_N[i + 1]);
-    row.a = 0.5 * (r.rep_a[i] + r.rep_a[i + 1]);
+    row.a = 0.5 * (r.rep_a[i] + r.rep_a[i + 1]) - (o.secant ? fo.L : 0.0);
     row.da_dN = (r.rep_a[i + 1] - r.rep_a[i]) / dN;
     const double s = row.a / o.b;
     const double t_mid = 0.5 * (rep_t[i] + rep_t[i + 1]); // (N is not linear in t with jumps)
@@ -448,7 +463,8 @@ void read_jumped_cycles(const std::string& path, CyclicLoad& load) {
 }
 } // namespace
 
-FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& window_override) {
+FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& window_override,
+                                    const std::string& rate_override) {
   const RunGeometry rg = read_run_geometry(dir, "fatigue analysis");
   const toml::table& c = rg.resolved;
   const auto* an = c["analysis"].as_table();
@@ -484,6 +500,15 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
                                  "\"{}\"",
                                  window));
   o.from_first_cycle = window == "cycles";
+  const std::string rate_method =
+      !rate_override.empty()
+          ? rate_override
+          : (an ? (*an)["fatigue_rate"].value_or(std::string("points")) : "points");
+  if (rate_method != "points" && rate_method != "secant")
+    throw InputError(fmt::format("fatigue rate: expected \"points\" or \"secant\", got "
+                                 "\"{}\"",
+                                 rate_method));
+  o.secant = rate_method == "secant";
   const std::string wanted = an ? (*an)["fatigue_load"].value_or(std::string()) : std::string();
   CyclicLoad load = read_cyclic_load(rg, wanted, t_end);
   read_jumped_cycles(dir + "/energy.csv", load);
@@ -497,9 +522,9 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
     rows += fmt::format("{:.6g},{:.9g},{:.6g},{:.6g}\n", w.N, w.a, w.da_dN, w.delta_K);
   write_file(dir + "/fatigue.csv", rows);
   // The fronts and each column's first times, for the pictures.
-  const std::vector<double> first_p = column_first_times(softening, fo);
+  const std::vector<double> first_p = column_first_times(first_damage(softening, broken), fo);
   const std::vector<double> first_r = column_first_times(broken, fo);
-  std::string cols = "x,first_softening_t,first_broken_t\n";
+  std::string cols = "x,first_damage_t,first_broken_t\n";
   for (std::size_t i = 0; i < first_p.size(); ++i)
     cols += fmt::format("{:.9g},{:.9g},{:.9g}\n", (static_cast<double>(i) + 0.5) * fo.L,
                         first_p[i], first_r[i]);
@@ -534,7 +559,8 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   j["final_front_m"] = r.front.empty() ? fo.tip : r.front.back().a;
   j["width_b_m"] = o.b;
   j["window"] = window;
-  j["representative_points"] = o.points;
+  j["rate"] = rate_method;
+  j["representative_points"] = o.secant ? r.rep_N.size() : o.points;
   j["band_m"] = fo.band;
   j["unstable_advance_m"] = o.unstable_advance;
   j["note"] = r.note;

@@ -62,6 +62,13 @@ std::vector<FrontStep> damage_front(const std::vector<BarEvent>& events, const F
 // The front at time t: the last step at or before t (the tip before the first step).
 double front_at(const std::vector<FrontStep>& front, double tip, double t);
 
+// The events that make the damage front: the bars' first softening and their ruptures. A bar
+// of the paper's law softens before it breaks, so its rupture never comes first; a bar of the
+// fatigue law may break from the intact state when its life runs out, and that is its first
+// damage.
+std::vector<BarEvent> first_damage(const std::vector<BarEvent>& softening,
+                                   const std::vector<BarEvent>& broken);
+
 // The loading of the fatigue analysis: the remote stress sigma(t) of one load and the start
 // and frequency of its cycles.
 // The remote stress [Pa] of a resolved [[load]] of the run at time factor 1: its traction, or
@@ -92,6 +99,12 @@ struct FatigueOptions {
   // the paper); true, every cycle from the first (growth under the rising amplitude too, each
   // interval with its own cycle's stress range).
   bool from_first_cycle = false;
+  // How da/dN is taken over the window: false, between `points` representative points evenly
+  // spaced in N (the paper); true, between consecutive steps of the front (the secant method of
+  // ASTM E647 on the (N, a) record), which follows a rate that changes by orders of magnitude;
+  // the interval's a is then the tip's mean position, the fronts' mean less one module (the
+  // tip lies in the column the front has just reached).
+  bool secant = false;
 };
 
 struct FatigueRow {
@@ -120,7 +133,9 @@ std::string fatigue_report(const FatigueAnalysis& r);
 
 // `ldem analyze fatigue DIR`: reads DIR/case.resolved.toml and DIR/events.csv, writes
 // DIR/fatigue.csv, DIR/fatigue_front.csv, DIR/fatigue_columns.csv and `analysis.fatigue` in
-// DIR/summary.json. `window` ("constant" or "cycles") overrides the case's fatigue_window.
-FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& window = "");
+// DIR/summary.json. `window` ("constant" or "cycles") overrides the case's fatigue_window,
+// `rate` ("points" or "secant") its fatigue_rate.
+FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& window = "",
+                                    const std::string& rate = "");
 
 } // namespace ldem

@@ -293,11 +293,26 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     c.options.step.end = s.end_time;
     c.options.damping = s.damping;
     c.options.law = find_law(s.law);
+    if (s.material.fatigue && s.material.fatigue->box) {
+      const auto& [lo, hi] = *s.material.fatigue->box;
+      for (index_t b = 0; b < lat.num_bars(); ++b) {
+        const Vec3 m = lat.bar_centre(b);
+        if (!(m.x >= lo.x && m.x <= hi.x && m.y >= lo.y && m.y <= hi.y && m.z >= lo.z &&
+              m.z <= hi.z))
+          c.lifeless.push_back(b);
+      }
+      if (c.lifeless.size() == static_cast<std::size_t>(lat.num_bars()))
+        throw InputError(fmt::format(
+            "fatigue.box_min: expected a box holding the centre of at least one bar, got "
+            "[{:g}, {:g}, {:g}] to [{:g}, {:g}, {:g}] m",
+            lo.x, lo.y, lo.z, hi.x, hi.y, hi.z));
+    }
     if (with_simulation) {
       BarTable table(lat, s.material, fields);
       c.warnings = table.warnings();
       c.sim = std::make_unique<Simulation>(std::move(lat), std::move(table), std::move(cond),
                                            c.options, c.precracked);
+      remove_fatigue_life(*c.sim, c.lifeless);
     }
   } catch (const InputError& e) {
     throw InputError(located(s, path, e.what()));
@@ -306,6 +321,17 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
   if (c.sim)
     check_end_time(c, c.sim->dt());
   return c;
+}
+
+void remove_fatigue_life(Simulation& sim, const std::vector<index_t>& bars) {
+  const auto arrays = sim.bar_state_arrays();
+  for (std::size_t a = 0; a < arrays.size(); ++a)
+    if (arrays[a].name == "life") {
+      const std::span<double> life = sim.bar_state_array(a);
+      for (const index_t b : bars)
+        life[b] = std::numeric_limits<double>::infinity(); // never used up (a cycle's share
+                                                           // leaves it infinite)
+    }
 }
 
 void check_end_time(const BuiltCase& c, double dt) {
@@ -362,6 +388,15 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     t.insert("jump_breaks", static_cast<std::int64_t>(f->jump_breaks));
     t.insert("jump_max", f->jump_max);
     t.insert("jump_fraction", f->jump_fraction);
+  }
+  if (const auto& f = s.material.fatigue; f && f->box) {
+    toml::table& t = *root["fatigue"].as_table();
+    const auto& [lo, hi] = *f->box;
+    t.insert("box_min", toml::array{lo.x, lo.y, lo.z});
+    t.insert("box_max", toml::array{hi.x, hi.y, hi.z});
+    t.insert("bars_with_life",
+             static_cast<std::int64_t>(c.lattice->num_bars()) -
+                 static_cast<std::int64_t>(c.lifeless.size()));
   }
   if (const auto& f = s.material.fatigue) {
     // The gate as given, or the default as a strain range: 1 % of e_p, its range over the bars.
@@ -541,6 +576,7 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
       an.insert("fatigue_load", s.analysis.fatigue_load);
     an.insert("fatigue_points", s.analysis.fatigue_points);
     an.insert("fatigue_window", s.analysis.fatigue_window);
+    an.insert("fatigue_rate", s.analysis.fatigue_rate);
     if (s.analysis.fatigue_band > 0)
       an.insert("fatigue_band", s.analysis.fatigue_band);
     if (s.analysis.fatigue_unstable_advance > 0)

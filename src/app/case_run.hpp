@@ -22,6 +22,8 @@ struct BuiltCase {
   std::unique_ptr<Simulation> sim;
   std::vector<NodeSet> sets;
   std::vector<index_t> precracked;
+  // Bars without a fatigue life (outside [fatigue] box_min/box_max), in the body's numbering.
+  std::vector<index_t> lifeless;
   std::vector<CutResult> cuts;
   std::vector<index_t> probe_bars; // per probe: the bar of a bar_force probe
   std::vector<std::string> warnings;
@@ -44,6 +46,9 @@ const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& na
 
 // Throws InputError unless the case's time.end holds at least one step of dt.
 void check_end_time(const BuiltCase& c, double dt);
+// A law with a fatigue life: the bars `bars` (the simulation's numbering) get an endless life,
+// so that cycles never break them. Nothing for other laws.
+void remove_fatigue_life(Simulation& sim, const std::vector<index_t>& bars);
 
 // The size of the whole force of load `i` of the case at time t [N]: its force per node times
 // the node count, or its traction times the area of its face.

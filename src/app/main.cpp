@@ -153,6 +153,13 @@ int main(int argc, char** argv) {
                    "amplitude (\"constant\") or every cycle (\"cycles\"); default "
                    "the case's analysis.fatigue_window")
       ->check(CLI::IsMember({"constant", "cycles"}));
+  std::string analyze_rate;
+  cmd_analyze
+      ->add_option("--rate", analyze_rate,
+                   "fatigue: da/dN between representative points evenly spaced in N "
+                   "(\"points\", as the paper) or between consecutive front steps "
+                   "(\"secant\"); default the case's analysis.fatigue_rate")
+      ->check(CLI::IsMember({"points", "secant"}));
 
   ldem::EnsembleOptions ens;
   bool ens_no_plot = false;
@@ -263,7 +270,7 @@ int main(int argc, char** argv) {
     if (cmd_analyze->parsed()) {
       if (analyze_what == "fatigue")
         fmt::print("{}\n",
-                   ldem::fatigue_report(ldem::analyze_fatigue_dir(analyze_dir, analyze_window)));
+                   ldem::fatigue_report(ldem::analyze_fatigue_dir(analyze_dir, analyze_window, analyze_rate)));
       else
         fmt::print("{}\n", ldem::crack_report(ldem::analyze_crack_dir(analyze_dir)));
       return 0;

@@ -142,10 +142,19 @@ DistributedBody::DistributedBody(BuiltCase& c, ProcessGrid grid, int rank)
       precracked.push_back(local.bar(a.family, a.i, a.j - sub.y.w0, a.k - sub.z.w0));
   }
   std::sort(precracked.begin(), precracked.end());
+  // The same for the bars without a fatigue life, present here as owned or ghost bars.
+  std::vector<index_t> lifeless;
+  for (index_t b : c.lifeless) {
+    const BarAddress a = whole.bar_address(b);
+    const FamilyInfo& fl = local.family(a.family);
+    if (a.j >= sub.y.w0 && a.j - sub.y.w0 < fl.nj && a.k >= sub.z.w0 && a.k - sub.z.w0 < fl.nk)
+      lifeless.push_back(local.bar(a.family, a.i, a.j - sub.y.w0, a.k - sub.z.w0));
+  }
   SolverOptions options = c.options;
   options.defer_time_step = true; // the body's step, below
   run_ = std::make_unique<SubdomainRun>(sub, std::move(local), std::move(table),
                                         std::move(conditions), options, std::move(precracked));
+  remove_fatigue_life(run_->sim(), lifeless);
 }
 
 void DistributedBody::agree_on_body() {

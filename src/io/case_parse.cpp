@@ -600,6 +600,19 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
           static_cast<std::uint64_t>(r.get_int(fat, "fatigue", "jump_breaks", "fatigue."));
       f.jump_max = r.get_float(fat, "fatigue", "jump_max", "fatigue.");
       f.jump_fraction = r.get_float(fat, "fatigue", "jump_fraction", "fatigue.");
+      const auto lo = r.opt_vec3(fat, "fatigue", "box_min", "fatigue.");
+      const auto hi = r.opt_vec3(fat, "fatigue", "box_max", "fatigue.");
+      if (lo.has_value() != hi.has_value())
+        r.fail(&fat, lo ? "fatigue.box_max" : "fatigue.box_min",
+               lo ? "missing: box_min needs box_max" : "missing: box_max needs box_min");
+      if (lo) {
+        if (!(lo->x <= hi->x && lo->y <= hi->y && lo->z <= hi->z))
+          r.fail(fat.get("box_max"), "fatigue.box_max",
+                 fmt::format("expected a corner at or above box_min [{:g}, {:g}, {:g}] in x, y "
+                             "and z, got [{:g}, {:g}, {:g}]",
+                             lo->x, lo->y, lo->z, hi->x, hi->y, hi->z));
+        f.box = std::array<Vec3, 2>{*lo, *hi};
+      }
       if (!f.jump)
         for (const char* k : {"jump_window", "jump_breaks", "jump_max", "jump_fraction"})
           if (r.has(fat, k))
@@ -776,6 +789,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.analysis.fatigue_load = r.opt_string(an, "analysis", "fatigue_load", "analysis.").value_or("");
   c.analysis.fatigue_points = r.get_int(an, "analysis", "fatigue_points", "analysis.");
   c.analysis.fatigue_window = r.get_string(an, "analysis", "fatigue_window", "analysis.");
+  c.analysis.fatigue_rate = r.get_string(an, "analysis", "fatigue_rate", "analysis.");
   c.analysis.fatigue_band = r.opt_float(an, "analysis", "fatigue_band", "analysis.").value_or(0.0);
   c.analysis.fatigue_unstable_advance =
       r.opt_float(an, "analysis", "fatigue_unstable_advance", "analysis.").value_or(0.0);
