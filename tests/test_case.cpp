@@ -447,7 +447,7 @@ m = 4
 box_min = [1, 1, 1]
 box_max = [2, 2, 2]
 )");
-  EXPECT_NE(e.find("fatigue.box_min: expected a box holding the centre of at least one bar, got "
+  EXPECT_NE(e.find("fatigue.box_min: expected a box that at least one bar meets, got "
                    "[1, 1, 1] to [2, 2, 2] m"),
             std::string::npos)
       << e;

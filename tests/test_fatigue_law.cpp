@@ -377,7 +377,7 @@ TEST(FatigueLaw, JumpedAndResolvedRunsBreakTheFirstBarsAtTheSameCycle) {
   std::filesystem::remove_all(dir + "jumped");
 }
 
-// [fatigue] box_min/box_max: only the bars centred in the box have a life. Lives do not
+// [fatigue] box_min/box_max: only the bars that meet the box have a life. Lives do not
 // change the mechanics until a bar breaks, so with a box around the notch's plane (the band
 // of module rows 9 and 10, z from 0.045 to 0.055 m, where the whole run's first bars break)
 // the run is the whole run up to its first break, which must be the same bar at the same

@@ -560,3 +560,26 @@ TEST(NodeSets, EmptySelectionIsRefusedNamingTheSet) {
 
 } // namespace
 } // namespace ldem
+
+namespace ldem {
+namespace {
+// The segment-box test that selects the bars of a fatigue box: a bar crossing a thin slab
+// meets it though both its ends and its centre lie outside; one beside it, or one that ends
+// short of it, does not; touching a face counts; a segment parallel to a face meets the box
+// only if it lies within the slab of that axis.
+TEST(SegmentMeetsBox, CrossingTouchingAndMissing) {
+  const Vec3 lo{0.0, 0.0, 0.402}, hi{1.0, 1.0, 0.403};
+  EXPECT_TRUE(segment_meets_box({0.5, 0.5, 0.395}, {0.5, 0.5, 0.405}, lo, hi)); // crosses
+  EXPECT_TRUE(segment_meets_box({0.5, 0.5, 0.405}, {0.5, 0.5, 0.395}, lo, hi)); // reversed
+  EXPECT_FALSE(segment_meets_box({0.5, 0.5, 0.40}, {0.6, 0.5, 0.40}, lo, hi)); // beside, parallel
+  EXPECT_FALSE(segment_meets_box({0.5, 0.5, 0.40}, {0.5, 0.5, 0.4015}, lo, hi)); // ends short
+  EXPECT_TRUE(segment_meets_box({0.5, 0.5, 0.40}, {0.5, 0.5, 0.402}, lo, hi));  // touches a face
+  EXPECT_TRUE(segment_meets_box({0.2, 0.2, 0.4025}, {0.3, 0.3, 0.4025}, lo, hi)); // inside
+  // A diagonal that crosses the slab's z range beside the box in x does not meet it.
+  EXPECT_FALSE(segment_meets_box({1.5, 0.5, 0.40}, {2.0, 0.5, 0.41}, lo, hi));
+  // One that enters the slab of z only where it has left the box in x does not either.
+  EXPECT_FALSE(segment_meets_box({0.9, 0.5, 0.39}, {1.2, 0.5, 0.405}, lo, hi));
+  EXPECT_TRUE(segment_meets_box({0.9, 0.5, 0.40}, {1.0, 0.5, 0.405}, lo, hi));
+}
+} // namespace
+} // namespace ldem

@@ -248,7 +248,8 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
                       ? load.range_at(t_mid) * std::sqrt(std::numbers::pi * row.a) *
                             tada_edge_crack_factor(s)
                       : std::numeric_limits<double>::quiet_NaN();
-    row.in_fit = row.da_dN > 0.0 && std::isfinite(row.delta_K) && row.delta_K > 0.0;
+    row.in_fit = row.da_dN > 0.0 && std::isfinite(row.delta_K) && row.delta_K > 0.0 &&
+                 row.a - fo.tip >= o.fit_after;
     if (row.in_fit) {
       dK.push_back(row.delta_K);
       rate.push_back(row.da_dN);
@@ -263,7 +264,15 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
       std::count_if(r.rows.begin(), r.rows.end(), [](const FatigueRow& w) {
         return std::isfinite(w.delta_K) && !(w.da_dN > 0.0);
       }));
+  const std::size_t near = static_cast<std::size_t>(
+      std::count_if(r.rows.begin(), r.rows.end(), [&](const FatigueRow& w) {
+        return std::isfinite(w.delta_K) && w.da_dN > 0.0 && w.a - fo.tip < o.fit_after;
+      }));
   std::string why;
+  if (near)
+    why += fmt::format("{} interval(s) within fatigue_fit_after = {:g} m of the pre-crack's tip "
+                       "left out; ",
+                       near, o.fit_after);
   if (outside)
     why += fmt::format("{} interval(s) with a/b > {:g} (beyond Tada's range) left out; ",
                        outside, kTadaMaxRatio);
@@ -509,6 +518,7 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
                                  "\"{}\"",
                                  rate_method));
   o.secant = rate_method == "secant";
+  o.fit_after = opt("fatigue_fit_after", 0.0);
   const std::string wanted = an ? (*an)["fatigue_load"].value_or(std::string()) : std::string();
   CyclicLoad load = read_cyclic_load(rg, wanted, t_end);
   read_jumped_cycles(dir + "/energy.csv", load);
@@ -560,6 +570,7 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   j["width_b_m"] = o.b;
   j["window"] = window;
   j["rate"] = rate_method;
+  j["fit_after_m"] = o.fit_after;
   j["representative_points"] = o.secant ? r.rep_N.size() : o.points;
   j["band_m"] = fo.band;
   j["unstable_advance_m"] = o.unstable_advance;

@@ -105,6 +105,10 @@ struct FatigueOptions {
   // the interval's a is then the tip's mean position, the fronts' mean less one module (the
   // tip lies in the column the front has just reached).
   bool secant = false;
+  // Intervals whose tip lies less than this beyond the pre-crack's tip are listed but left out
+  // of the fit [m]: the growth away from a cut notch, before the crack has its own tip (as
+  // ASTM E647 leaves out the growth from a machined notch).
+  double fit_after = 0.0;
 };
 
 struct FatigueRow {

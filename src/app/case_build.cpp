@@ -296,14 +296,13 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     if (s.material.fatigue && s.material.fatigue->box) {
       const auto& [lo, hi] = *s.material.fatigue->box;
       for (index_t b = 0; b < lat.num_bars(); ++b) {
-        const Vec3 m = lat.bar_centre(b);
-        if (!(m.x >= lo.x && m.x <= hi.x && m.y >= lo.y && m.y <= hi.y && m.z >= lo.z &&
-              m.z <= hi.z))
+        const auto [n0, n1] = lat.bar_nodes(b);
+        if (!segment_meets_box(lat.position(n0), lat.position(n1), lo, hi))
           c.lifeless.push_back(b);
       }
       if (c.lifeless.size() == static_cast<std::size_t>(lat.num_bars()))
         throw InputError(fmt::format(
-            "fatigue.box_min: expected a box holding the centre of at least one bar, got "
+            "fatigue.box_min: expected a box that at least one bar meets, got "
             "[{:g}, {:g}, {:g}] to [{:g}, {:g}, {:g}] m",
             lo.x, lo.y, lo.z, hi.x, hi.y, hi.z));
     }
@@ -577,6 +576,7 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     an.insert("fatigue_points", s.analysis.fatigue_points);
     an.insert("fatigue_window", s.analysis.fatigue_window);
     an.insert("fatigue_rate", s.analysis.fatigue_rate);
+    an.insert("fatigue_fit_after", s.analysis.fatigue_fit_after);
     if (s.analysis.fatigue_band > 0)
       an.insert("fatigue_band", s.analysis.fatigue_band);
     if (s.analysis.fatigue_unstable_advance > 0)

@@ -22,7 +22,8 @@ struct BuiltCase {
   std::unique_ptr<Simulation> sim;
   std::vector<NodeSet> sets;
   std::vector<index_t> precracked;
-  // Bars without a fatigue life (outside [fatigue] box_min/box_max), in the body's numbering.
+  // Bars without a fatigue life (not meeting [fatigue] box_min/box_max), in the body's
+  // numbering.
   std::vector<index_t> lifeless;
   std::vector<CutResult> cuts;
   std::vector<index_t> probe_bars; // per probe: the bar of a bar_force probe

@@ -790,6 +790,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.analysis.fatigue_points = r.get_int(an, "analysis", "fatigue_points", "analysis.");
   c.analysis.fatigue_window = r.get_string(an, "analysis", "fatigue_window", "analysis.");
   c.analysis.fatigue_rate = r.get_string(an, "analysis", "fatigue_rate", "analysis.");
+  c.analysis.fatigue_fit_after = r.get_float(an, "analysis", "fatigue_fit_after", "analysis.");
   c.analysis.fatigue_band = r.opt_float(an, "analysis", "fatigue_band", "analysis.").value_or(0.0);
   c.analysis.fatigue_unstable_advance =
       r.opt_float(an, "analysis", "fatigue_unstable_advance", "analysis.").value_or(0.0);

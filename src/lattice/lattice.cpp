@@ -3,6 +3,7 @@
 #include "util/aligned.hpp"
 #include "util/error.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
 #include <limits>
@@ -114,6 +115,26 @@ std::array<index_t, 2> Lattice::bar_nodes(index_t bar) const {
   const BarAddress a = bar_address(bar);
   const FamilyInfo& fi = family(a.family);
   return {fi.a.at(a.i, a.j, a.k), fi.b.at(a.i, a.j, a.k)};
+}
+
+bool segment_meets_box(Vec3 a, Vec3 b, Vec3 lo, Vec3 hi) {
+  double s0 = 0.0, s1 = 1.0; // the segment's parameters a + s (b - a) inside every slab so far
+  for (int axis = 0; axis < 3; ++axis) {
+    const double p = a[axis], d = b[axis] - p;
+    if (d == 0.0) {
+      if (p < lo[axis] || p > hi[axis])
+        return false;
+      continue;
+    }
+    double t0 = (lo[axis] - p) / d, t1 = (hi[axis] - p) / d;
+    if (t0 > t1)
+      std::swap(t0, t1);
+    s0 = std::max(s0, t0);
+    s1 = std::min(s1, t1);
+    if (s0 > s1)
+      return false;
+  }
+  return true;
 }
 
 Vec3 Lattice::bar_centre(index_t bar) const {

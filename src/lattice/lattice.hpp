@@ -26,6 +26,10 @@ struct Vec3 {
   double operator[](int axis) const { return axis == 0 ? x : (axis == 1 ? y : z); }
 };
 
+// Whether the segment from a to b has a point in the box [lo, hi] (faces included): the part
+// of the segment inside each slab lo <= x <= hi, intersected over the three axes.
+bool segment_meets_box(Vec3 a, Vec3 b, Vec3 lo, Vec3 hi);
+
 inline constexpr int kFamilies = 14;
 
 enum class Family : std::uint8_t {

@@ -34,8 +34,8 @@ struct FatigueSpec {
   std::uint64_t jump_breaks = 0;
   double jump_max = 1e6;
   double jump_fraction = 0.2;
-  // Only bars centred in this box [lo, hi] (bounds included) have a fatigue life; without it,
-  // every bar.
+  // Only bars that meet this box [lo, hi] (a point of the bar inside it, faces included) have
+  // a fatigue life; without it, every bar.
   std::optional<std::array<Vec3, 2>> box = std::nullopt;
 };
 
