@@ -335,5 +335,35 @@ TEST(Fatigue, FitAfterLeavesTheGrowthFromTheNotchOut) {
       << later.note;
 }
 
+// fit_elastic: a bar near the crack softens when the front has grown 20 columns; the
+// intervals that end after it leave the fit (the note says so), the earlier ones keep the
+// exponent within 1 %. A softening far from the crack (outside the band) does not count.
+TEST(Fatigue, FitElasticStopsAtTheFirstSofteningNearTheCrack) {
+  const double f = 100.0, C = 3.0e-28, m = 4.0;
+  FrontOptions o = plate();
+  o.L = 0.005;
+  o.tip = 0.15;
+  const CyclicLoad load = constant_load(f, 1000.0);
+  const auto [e, N] = paris_crack(o, f, C, m);
+  FatigueOptions fo;
+  fo.b = 0.75;
+  fo.unstable_advance = 0.075;
+  fo.secant = true;
+  const std::vector<FrontStep> front = damage_front(e, o);
+  ASSERT_GT(front.size(), 30u);
+  const double t_soft = front[20].t + 1e-6;
+  const std::vector<BarEvent> softening{{0.5 * t_soft, 0.2, 0.30}, // near the top face
+                                        {t_soft, front[20].a - 0.5 * o.L, o.plane + 0.25 * o.L}};
+  fo.fit_elastic = true;
+  const FatigueAnalysis r = analyze_fatigue(softening, e, o, load, fo, N / f + 1.0);
+  ASSERT_TRUE(r.first_softening_t.has_value());
+  EXPECT_DOUBLE_EQ(*r.first_softening_t, t_soft);
+  ASSERT_TRUE(r.paris.has_value()) << r.note;
+  // Front steps 0 to 20 bound 20 intervals, all ended by t_soft.
+  EXPECT_EQ(r.paris->points, 20u);
+  EXPECT_NEAR(r.paris->m / m, 1.0, 0.01) << r.paris->m;
+  EXPECT_NE(r.note.find("after the first softening near the crack"), std::string::npos) << r.note;
+}
+
 } // namespace
 } // namespace ldem

@@ -41,9 +41,9 @@ ParisFit fit_paris(const std::vector<double>& delta_K, const std::vector<double>
   std::vector<double> x(n), y(n);
   for (std::size_t i = 0; i < n; ++i) {
     if (!(delta_K[i] > 0.0) || !(da_dN[i] > 0.0))
-      throw InputError(fmt::format(
-          "Paris fit: point {} has Delta K = {:g}, da/dN = {:g}; both must be positive", i,
-          delta_K[i], da_dN[i]));
+      throw InputError(
+          fmt::format("Paris fit: point {} has Delta K = {:g}, da/dN = {:g}; both must be positive",
+                      i, delta_K[i], da_dN[i]));
     x[i] = std::log10(delta_K[i]);
     y[i] = std::log10(da_dN[i]);
   }
@@ -85,8 +85,7 @@ ParisFit fit_paris(const std::vector<double>& delta_K, const std::vector<double>
   return f;
 }
 
-std::vector<double> column_first_times(const std::vector<BarEvent>& events,
-                                       const FrontOptions& o) {
+std::vector<double> column_first_times(const std::vector<BarEvent>& events, const FrontOptions& o) {
   const auto columns = static_cast<std::size_t>(std::llround(o.x_end / o.L));
   std::vector<double> first(columns, std::numeric_limits<double>::quiet_NaN());
   for (const BarEvent& e : events) {
@@ -219,6 +218,11 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
                          where, w0, w1_in);
     return r;
   }
+  if (o.fit_elastic)
+    for (const BarEvent& e : softening)
+      if (e.t >= w0 && std::abs(e.n - fo.plane) <= fo.band &&
+          (!r.first_softening_t || e.t < *r.first_softening_t))
+        r.first_softening_t = e.t;
   std::vector<double> rep_t;
   if (o.secant) {
     // The front's own steps within the window. At a step the tip enters the column whose far
@@ -228,8 +232,8 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
         rep_t.push_back(s.t);
   } else {
     for (std::size_t i = 0; i < o.points; ++i)
-      rep_t.push_back(w0 + (w1_in - w0) * static_cast<double>(i) /
-                               static_cast<double>(o.points - 1));
+      rep_t.push_back(w0 +
+                      (w1_in - w0) * static_cast<double>(i) / static_cast<double>(o.points - 1));
   }
   for (const double t : rep_t) {
     r.rep_N.push_back(N_of(t));
@@ -244,38 +248,46 @@ FatigueAnalysis analyze_fatigue(const std::vector<BarEvent>& softening,
     row.da_dN = (r.rep_a[i + 1] - r.rep_a[i]) / dN;
     const double s = row.a / o.b;
     const double t_mid = 0.5 * (rep_t[i] + rep_t[i + 1]); // (N is not linear in t with jumps)
-    row.delta_K = s > 0.0 && s <= kTadaMaxRatio * (1.0 + 1e-12)
-                      ? load.range_at(t_mid) * std::sqrt(std::numbers::pi * row.a) *
-                            tada_edge_crack_factor(s)
-                      : std::numeric_limits<double>::quiet_NaN();
+    row.delta_K =
+        s > 0.0 && s <= kTadaMaxRatio * (1.0 + 1e-12)
+            ? load.range_at(t_mid) * std::sqrt(std::numbers::pi * row.a) * tada_edge_crack_factor(s)
+            : std::numeric_limits<double>::quiet_NaN();
     row.in_fit = row.da_dN > 0.0 && std::isfinite(row.delta_K) && row.delta_K > 0.0 &&
-                 row.a - fo.tip >= o.fit_after;
+                 row.a - fo.tip >= o.fit_after &&
+                 !(r.first_softening_t && rep_t[i + 1] > *r.first_softening_t);
     if (row.in_fit) {
       dK.push_back(row.delta_K);
       rate.push_back(row.da_dN);
     }
     r.rows.push_back(row);
   }
-  const std::size_t outside = static_cast<std::size_t>(
-      std::count_if(r.rows.begin(), r.rows.end(), [](const FatigueRow& w) {
-        return !std::isfinite(w.delta_K);
-      }));
-  const std::size_t still = static_cast<std::size_t>(
-      std::count_if(r.rows.begin(), r.rows.end(), [](const FatigueRow& w) {
+  const std::size_t outside = static_cast<std::size_t>(std::count_if(
+      r.rows.begin(), r.rows.end(), [](const FatigueRow& w) { return !std::isfinite(w.delta_K); }));
+  const std::size_t still =
+      static_cast<std::size_t>(std::count_if(r.rows.begin(), r.rows.end(), [](const FatigueRow& w) {
         return std::isfinite(w.delta_K) && !(w.da_dN > 0.0);
       }));
   const std::size_t near = static_cast<std::size_t>(
       std::count_if(r.rows.begin(), r.rows.end(), [&](const FatigueRow& w) {
         return std::isfinite(w.delta_K) && w.da_dN > 0.0 && w.a - fo.tip < o.fit_after;
       }));
+  const std::size_t yielding = static_cast<std::size_t>(
+      std::count_if(r.rows.begin(), r.rows.end(), [&](const FatigueRow& w) {
+        return std::isfinite(w.delta_K) && w.da_dN > 0.0 && w.a - fo.tip >= o.fit_after &&
+               !w.in_fit;
+      }));
   std::string why;
+  if (yielding)
+    why += fmt::format("{} interval(s) after the first softening near the crack (t = {:.6g} s, "
+                       "N = {:.1f}) left out; ",
+                       yielding, *r.first_softening_t, N_of(*r.first_softening_t));
   if (near)
     why += fmt::format("{} interval(s) within fatigue_fit_after = {:g} m of the pre-crack's tip "
                        "left out; ",
                        near, o.fit_after);
   if (outside)
-    why += fmt::format("{} interval(s) with a/b > {:g} (beyond Tada's range) left out; ",
-                       outside, kTadaMaxRatio);
+    why += fmt::format("{} interval(s) with a/b > {:g} (beyond Tada's range) left out; ", outside,
+                       kTadaMaxRatio);
   if (still)
     why += fmt::format("{} interval(s) without front advance (da/dN = 0) left out; ", still);
   std::set<double> distinct(dK.begin(), dK.end());
@@ -313,8 +325,8 @@ double load_remote_stress(const RunGeometry& rg, const toml::table& load) {
         if (const toml::table* s = n.as_table(); s && (*s)["name"].value_or(std::string()) == set)
           nodes = (*s)["nodes_selected"].value_or(0.0);
     if (!(nodes > 0.0))
-      throw InputError(fmt::format("{}: load \"{}\": its set \"{}\" has no nodes_selected", file,
-                                   name, set));
+      throw InputError(
+          fmt::format("{}: load \"{}\": its set \"{}\" has no nodes_selected", file, name, set));
     const auto axis = static_cast<std::size_t>(
         std::max_element(force.begin(), force.end(),
                          [](double p, double q) { return std::abs(p) < std::abs(q); }) -
@@ -385,11 +397,10 @@ CyclicLoad read_cyclic_load(const RunGeometry& rg, const std::string& wanted, do
     else if (type == "exp_rise")
       terms.emplace_back(ExponentialRise{value, resolved_number(v["tau"], file, "tau")});
     else
-      terms.emplace_back(GrowingSine{resolved_number(v["amplitude"], file, "amplitude"),
-                                     resolved_number(v["frequency"], file, "frequency"),
-                                     v["t_start"].value_or(0.0),
-                                     resolved_number(v["tau"], file, "tau"),
-                                     v["n_cycles"].value_or(0.0)});
+      terms.emplace_back(GrowingSine{
+          resolved_number(v["amplitude"], file, "amplitude"),
+          resolved_number(v["frequency"], file, "frequency"), v["t_start"].value_or(0.0),
+          resolved_number(v["tau"], file, "tau"), v["n_cycles"].value_or(0.0)});
   }
   const TimeFunction fn(terms);
   CyclicLoad cl;
@@ -480,8 +491,8 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   auto opt = [&](const char* key, double fallback) { return analysis_number(rg, key, fallback); };
   const double t_end = read_summary(dir).value("end_time", 0.0);
   if (!(t_end > 0.0))
-    throw InputError(fmt::format("{}/summary.json: end_time: expected a positive time, got {:g}",
-                                 dir, t_end));
+    throw InputError(
+        fmt::format("{}/summary.json: end_time: expected a positive time, got {:g}", dir, t_end));
 
   // x runs from the border the pre-crack starts at (the paper's a): the low one along its axis.
   const CrackGeometry& g = rg.crack;
@@ -519,6 +530,7 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
                                  rate_method));
   o.secant = rate_method == "secant";
   o.fit_after = opt("fatigue_fit_after", 0.0);
+  o.fit_elastic = an && (*an)["fatigue_fit_elastic"].value_or(false);
   const std::string wanted = an ? (*an)["fatigue_load"].value_or(std::string()) : std::string();
   CyclicLoad load = read_cyclic_load(rg, wanted, t_end);
   read_jumped_cycles(dir + "/energy.csv", load);
@@ -536,8 +548,8 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   const std::vector<double> first_r = column_first_times(broken, fo);
   std::string cols = "x,first_damage_t,first_broken_t\n";
   for (std::size_t i = 0; i < first_p.size(); ++i)
-    cols += fmt::format("{:.9g},{:.9g},{:.9g}\n", (static_cast<double>(i) + 0.5) * fo.L,
-                        first_p[i], first_r[i]);
+    cols += fmt::format("{:.9g},{:.9g},{:.9g}\n", (static_cast<double>(i) + 0.5) * fo.L, first_p[i],
+                        first_r[i]);
   write_file(dir + "/fatigue_columns.csv", cols);
   std::string fr = "t,N,a\n";
   for (const FrontStep& s : r.front)
@@ -548,14 +560,13 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   j["paris_C"] = r.paris ? nlohmann::ordered_json(r.paris->C) : nlohmann::ordered_json(nullptr);
   j["paris_m"] = r.paris ? nlohmann::ordered_json(r.paris->m) : nlohmann::ordered_json(nullptr);
   j["paris_r2"] = r.paris ? nlohmann::ordered_json(r.paris->r2) : nlohmann::ordered_json(nullptr);
-  j["paris_m_interval"] =
-      r.paris ? nlohmann::ordered_json::array({r.paris->m_low, r.paris->m_high})
-              : nlohmann::ordered_json(nullptr);
+  j["paris_m_interval"] = r.paris ? nlohmann::ordered_json::array({r.paris->m_low, r.paris->m_high})
+                                  : nlohmann::ordered_json(nullptr);
   j["paris_confidence"] = o.confidence;
   j["paris_points"] = r.paris ? r.paris->points : 0;
-  j["subcritical_start_t_over_tmax"] =
-      r.subcritical_start_t ? nlohmann::ordered_json(*r.subcritical_start_t / t_end)
-                            : nlohmann::ordered_json(nullptr);
+  j["subcritical_start_t_over_tmax"] = r.subcritical_start_t
+                                           ? nlohmann::ordered_json(*r.subcritical_start_t / t_end)
+                                           : nlohmann::ordered_json(nullptr);
   j["unstable_t_over_tmax"] = r.unstable_t ? nlohmann::ordered_json(*r.unstable_t / t_end)
                                            : nlohmann::ordered_json(nullptr);
   j["cycles_to_failure"] = opt_json(r.cycles_to_failure);
@@ -571,6 +582,8 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   j["window"] = window;
   j["rate"] = rate_method;
   j["fit_after_m"] = o.fit_after;
+  j["fit_elastic"] = o.fit_elastic;
+  j["first_softening_in_window_t_s"] = opt_json(r.first_softening_t);
   j["representative_points"] = o.secant ? r.rep_N.size() : o.points;
   j["band_m"] = fo.band;
   j["unstable_advance_m"] = o.unstable_advance;

@@ -24,7 +24,7 @@ double tada_edge_crack_factor(double a_over_b);
 struct ParisFit {
   double C = 0.0, m = 0.0;
   double log10_C = 0.0;
-  double r2 = 0.0;               // coefficient of determination in log-log
+  double r2 = 0.0;                  // coefficient of determination in log-log
   double m_low = 0.0, m_high = 0.0; // two-sided confidence interval of m (Student t, n - 2)
   double confidence = 0.95;
   std::size_t points = 0;
@@ -49,15 +49,14 @@ struct FrontStep {
   double a; // ...this position [m]
 };
 struct FrontOptions {
-  double L = 0.0;      // module edge [m]
-  double tip = 0.0;    // pre-crack tip along x [m]
-  double plane = 0.0;  // the crack plane's position across x [m]
-  double band = 0.0;   // half-width of the band around the plane searched for events [m]
-  double x_end = 0.0;  // the far border of the body along x [m]
+  double L = 0.0;     // module edge [m]
+  double tip = 0.0;   // pre-crack tip along x [m]
+  double plane = 0.0; // the crack plane's position across x [m]
+  double band = 0.0;  // half-width of the band around the plane searched for events [m]
+  double x_end = 0.0; // the far border of the body along x [m]
 };
 // Earliest event per column (NaN where none), columns counted from x = 0.
-std::vector<double> column_first_times(const std::vector<BarEvent>& events,
-                                       const FrontOptions& o);
+std::vector<double> column_first_times(const std::vector<BarEvent>& events, const FrontOptions& o);
 std::vector<FrontStep> damage_front(const std::vector<BarEvent>& events, const FrontOptions& o);
 // The front at time t: the last step at or before t (the tip before the first step).
 double front_at(const std::vector<FrontStep>& front, double tip, double t);
@@ -91,9 +90,9 @@ struct CyclicLoad {
 };
 
 struct FatigueOptions {
-  double b = 0.0;                 // the plate's width along the crack [m]
-  std::size_t points = 10;        // representative points of a(N) over the subcritical window
-  double unstable_advance = 0.0;  // a front advance within one period that means unstable [m]
+  double b = 0.0;                // the plate's width along the crack [m]
+  std::size_t points = 10;       // representative points of a(N) over the subcritical window
+  double unstable_advance = 0.0; // a front advance within one period that means unstable [m]
   double confidence = 0.95;
   // The window of representative points: false, the cycles at constant amplitude (N >= 0, as
   // the paper); true, every cycle from the first (growth under the rising amplitude too, each
@@ -109,6 +108,10 @@ struct FatigueOptions {
   // of the fit [m]: the growth away from a cut notch, before the crack has its own tip (as
   // ASTM E647 leaves out the growth from a machined notch).
   double fit_after = 0.0;
+  // Leave out of the fit the intervals that end after the first bar within the band softens,
+  // once the window has started: the fit then covers small-scale yielding, the bulk still
+  // elastic (the fatigue law's cracks; the paper's law grows only by softening).
+  bool fit_elastic = false;
 };
 
 struct FatigueRow {
@@ -117,6 +120,7 @@ struct FatigueRow {
 };
 
 struct FatigueAnalysis {
+  std::optional<double> first_softening_t;     // in the window, with FatigueOptions::fit_elastic
   std::vector<FrontStep> front, rupture_front; // e_p and e_r fronts
   double t_end = 0.0;                          // tmax: the run's last time [s]
   std::optional<double> subcritical_start_t;   // front leaves the pre-crack's process zone

@@ -72,9 +72,8 @@ double load_total_force(const BuiltCase& c, std::size_t i, double t) {
   double weight = 0.0;
   for (std::size_t q = 0; q < whole.set.nodes.size(); ++q)
     weight += whole.weight_of(q);
-  return l.scale(t) * std::sqrt(l.force.x * l.force.x + l.force.y * l.force.y +
-                                l.force.z * l.force.z) *
-         weight;
+  return l.scale(t) *
+         std::sqrt(l.force.x * l.force.x + l.force.y * l.force.y + l.force.z * l.force.z) * weight;
 }
 
 namespace {
@@ -180,8 +179,7 @@ namespace {
 
 // Runs `f`; an InputError from it is given the case entry it concerns ("precrack[0]: ..."),
 // so that located() finds the entry's line.
-template <class F>
-auto for_entry(const std::string& entry, F&& f) {
+template <class F> auto for_entry(const std::string& entry, F&& f) {
   try {
     return f();
   } catch (const InputError& e) {
@@ -207,8 +205,8 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     }
     for (std::size_t i = 0; i < s.precracks.size(); ++i) {
       const PrecrackSpec& p = s.precracks[i];
-      c.cuts.push_back(
-          for_entry(fmt::format("precrack[{}]", i), [&] { return cut_bars(lat, p.rect, p.nudge); }));
+      c.cuts.push_back(for_entry(fmt::format("precrack[{}]", i),
+                                 [&] { return cut_bars(lat, p.rect, p.nudge); }));
       c.precracked.insert(c.precracked.end(), c.cuts.back().bars.begin(), c.cuts.back().bars.end());
     }
     std::sort(c.precracked.begin(), c.precracked.end());
@@ -279,9 +277,8 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
                   "fatigue.jump: expected the cyclic loads at one frequency, got {:g} and {:g} Hz",
                   c.cycle->frequency, g->frequency));
             const double t_constant = g->t_start + g->n_cycles / g->frequency;
-            c.cycle = BuiltCase::LoadCycle{g->frequency,
-                                           c.cycle ? std::max(c.cycle->t_constant, t_constant)
-                                                   : t_constant};
+            c.cycle = BuiltCase::LoadCycle{
+                g->frequency, c.cycle ? std::max(c.cycle->t_constant, t_constant) : t_constant};
           }
       if (!c.cycle)
         throw InputError("fatigue.jump: expected a [[load]] or [[velocity]] with a "
@@ -301,10 +298,10 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
           c.lifeless.push_back(b);
       }
       if (c.lifeless.size() == static_cast<std::size_t>(lat.num_bars()))
-        throw InputError(fmt::format(
-            "fatigue.box_min: expected a box that at least one bar meets, got "
-            "[{:g}, {:g}, {:g}] to [{:g}, {:g}, {:g}] m",
-            lo.x, lo.y, lo.z, hi.x, hi.y, hi.z));
+        throw InputError(
+            fmt::format("fatigue.box_min: expected a box that at least one bar meets, got "
+                        "[{:g}, {:g}, {:g}] to [{:g}, {:g}, {:g}] m",
+                        lo.x, lo.y, lo.z, hi.x, hi.y, hi.z));
     }
     if (with_simulation) {
       BarTable table(lat, s.material, fields);
@@ -374,13 +371,12 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
   if (s.material.e_r)
     mat.insert("e_r", *s.material.e_r);
   if (const auto& f = s.material.fatigue)
-    root.insert("fatigue",
-                toml::table{{"A", f->A},
-                            {"m", f->m},
-                            {"threshold", f->threshold},
-                            {"length", f->length},
-                            {"count_every", static_cast<std::int64_t>(f->count_every)},
-                            {"jump", f->jump}});
+    root.insert("fatigue", toml::table{{"A", f->A},
+                                       {"m", f->m},
+                                       {"threshold", f->threshold},
+                                       {"length", f->length},
+                                       {"count_every", static_cast<std::int64_t>(f->count_every)},
+                                       {"jump", f->jump}});
   if (const auto& f = s.material.fatigue; f && f->jump) {
     toml::table& t = *root["fatigue"].as_table();
     t.insert("jump_window", static_cast<std::int64_t>(f->jump_window));
@@ -393,9 +389,8 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     const auto& [lo, hi] = *f->box;
     t.insert("box_min", toml::array{lo.x, lo.y, lo.z});
     t.insert("box_max", toml::array{hi.x, hi.y, hi.z});
-    t.insert("bars_with_life",
-             static_cast<std::int64_t>(c.lattice->num_bars()) -
-                 static_cast<std::int64_t>(c.lifeless.size()));
+    t.insert("bars_with_life", static_cast<std::int64_t>(c.lattice->num_bars()) -
+                                   static_cast<std::int64_t>(c.lifeless.size()));
   }
   if (const auto& f = s.material.fatigue) {
     // The gate as given, or the default as a strain range: 1 % of e_p, its range over the bars.
@@ -405,8 +400,8 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     else if (body.ranges.e_p[0] == body.ranges.e_p[1])
       t.insert("gate", kDefaultGate * body.ranges.e_p[0]);
     else
-      t.insert("gate", toml::array{kDefaultGate * body.ranges.e_p[0],
-                                   kDefaultGate * body.ranges.e_p[1]});
+      t.insert("gate",
+               toml::array{kDefaultGate * body.ranges.e_p[0], kDefaultGate * body.ranges.e_p[1]});
   }
   const std::pair<const char*, const std::optional<Field>*> field_of[] = {
       {"E", &s.fields.E},     {"Gf", &s.fields.Gf},   {"e_p", &s.fields.e_p},
@@ -494,7 +489,9 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
                               {"function", function(v.scale)}});
   for (std::size_t i = 0; i < s.loads.size(); ++i) {
     const LoadSpec& l = s.loads[i];
-    toml::table t{{"name", l.name}, {"set", l.set}, {l.traction ? "traction" : "force", vec(l.force)},
+    toml::table t{{"name", l.name},
+                  {"set", l.set},
+                  {l.traction ? "traction" : "force", vec(l.force)},
                   {"function", function(l.scale)}};
     if (l.traction) {
       // The area the traction acts on, its nodes' areas added.
@@ -577,6 +574,7 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     an.insert("fatigue_window", s.analysis.fatigue_window);
     an.insert("fatigue_rate", s.analysis.fatigue_rate);
     an.insert("fatigue_fit_after", s.analysis.fatigue_fit_after);
+    an.insert("fatigue_fit_elastic", s.analysis.fatigue_fit_elastic);
     if (s.analysis.fatigue_band > 0)
       an.insert("fatigue_band", s.analysis.fatigue_band);
     if (s.analysis.fatigue_unstable_advance > 0)

@@ -4,11 +4,11 @@
 #include "util/text_file.hpp"
 
 #include <algorithm>
-#include <map>
 #include <cmath>
 #include <cstring>
 #include <fmt/format.h>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <toml++/toml.h>
 
@@ -528,8 +528,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     std::vector<const toml::table*> out;
     if (const toml::array* a = root[t].as_array())
       for (const toml::node& e : *a) {
-        c.key_lines[fmt::format("{}[{}]", t, out.size())] =
-            static_cast<int>(e.source().begin.line);
+        c.key_lines[fmt::format("{}[{}]", t, out.size())] = static_cast<int>(e.source().begin.line);
         out.push_back(e.as_table());
       }
     return out;
@@ -791,6 +790,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.analysis.fatigue_window = r.get_string(an, "analysis", "fatigue_window", "analysis.");
   c.analysis.fatigue_rate = r.get_string(an, "analysis", "fatigue_rate", "analysis.");
   c.analysis.fatigue_fit_after = r.get_float(an, "analysis", "fatigue_fit_after", "analysis.");
+  c.analysis.fatigue_fit_elastic = r.get_bool(an, "analysis", "fatigue_fit_elastic", "analysis.");
   c.analysis.fatigue_band = r.opt_float(an, "analysis", "fatigue_band", "analysis.").value_or(0.0);
   c.analysis.fatigue_unstable_advance =
       r.opt_float(an, "analysis", "fatigue_unstable_advance", "analysis.").value_or(0.0);

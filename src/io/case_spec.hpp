@@ -76,14 +76,15 @@ struct AnalysisSpec {
   double speed_fit_length = 0.0;  // m (0: 10 L)
   double zone_flag_length = 0.0;  // m (0: 3 L)
   bool fatigue = false;
-  std::string fatigue_load;            // "" : the first load with a growing sine
+  std::string fatigue_load; // "" : the first load with a growing sine
   std::int64_t fatigue_points = 10;
   std::string fatigue_window = "constant"; // or "cycles"
   std::string fatigue_rate = "points";     // or "secant"
   double fatigue_fit_after = 0.0;          // m
-  double fatigue_band = 0.0;           // m (0: a quarter of the body across the crack)
+  bool fatigue_fit_elastic = false;
+  double fatigue_band = 0.0;             // m (0: a quarter of the body across the crack)
   double fatigue_unstable_advance = 0.0; // m (0: b / 10)
-  double fatigue_width = 0.0;          // m (0: the body along the crack)
+  double fatigue_width = 0.0;            // m (0: the body along the crack)
 };
 
 struct CaseSpec {

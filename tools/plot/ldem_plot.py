@@ -465,7 +465,8 @@ def fatigue_pngs(d, case):
                 continue
             vals = [float(r[col]) for r in probes]
             if pr["kind"] == "load" and pr.get("load") in loads:
-                force = loads[pr["load"]]["force"]
+                ld = loads[pr["load"]]
+                force = ld["force"] if "force" in ld else ld["traction"]  # its direction
                 axis = max(range(3), key=lambda k: abs(force[k]))
                 section = math.prod(ext[k] for k in range(3) if k != axis)
                 ax.plot(t, [abs(v) / section / 1e6 for v in vals], lw=0.5, color="tab:blue",
@@ -497,7 +498,7 @@ def fatigue_pngs(d, case):
     if soft:
         ax.scatter(*zip(*soft), s=2, lw=0, c="tab:red", label="reaches e_p")
     if brk:
-        ax.scatter(*zip(*brk), s=2, lw=0, c="tab:blue", label="reaches e_r")
+        ax.scatter(*zip(*brk), s=2, lw=0, c="tab:blue", label="breaks (e_r, or its fatigue life)")
     if front:
         xs, ts = [fa["precrack_length_m"]], [float(front[0]["t"]) / tmax]
         for r in front:
