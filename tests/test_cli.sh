@@ -257,7 +257,7 @@ rc=$?
 # `ldem analyze fatigue` on a run without a cyclic load is an error that says what is missing.
 sed 's/^end = 8.1667 .*/end = 0.13/; s/^vtu_every = .*/vtu = false/' "$SRC/cases/subcritical_fatigue_coarse.toml" >"$T/fatigue.toml"
 if "$LDEM" run "$T/fatigue.toml" --out "$T/fatigue" >/dev/null 2>"$T/stderr" &&
-  [ "$(head -1 "$T/fatigue/fatigue.csv")" = "N,a,da_dN,delta_K" ] &&
+  [ "$(head -1 "$T/fatigue/fatigue.csv")" = "N,a,da_dN,delta_K,in_fit" ] &&
   [ "$(head -1 "$T/fatigue/fatigue_front.csv")" = "t,N,a" ] && [ -s "$T/fatigue/fatigue_front.png" ] &&
   [ -s "$T/fatigue/fatigue_load.png" ] && [ -s "$T/fatigue/fatigue_paris.png" ] &&
   grep -q '"paris_m"' "$T/fatigue/summary.json" && grep -q '"unstable_t_over_tmax"' "$T/fatigue/summary.json" &&

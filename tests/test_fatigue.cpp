@@ -257,6 +257,22 @@ TEST(Fatigue, BreaksWithoutSofteningMakeTheFront) {
   EXPECT_DOUBLE_EQ(g.front().t, 0.05);
 }
 
+// The coarse lattice of the secant tests (L = 5 mm, the tip at 0.15 m) and the analysis's
+// options for it: secant rates in a strip 0.75 m wide.
+FrontOptions coarse_plate() {
+  FrontOptions o = plate();
+  o.L = 0.005;
+  o.tip = 0.15;
+  return o;
+}
+FatigueOptions secant_options() {
+  FatigueOptions fo;
+  fo.b = 0.75;
+  fo.unstable_advance = 0.075;
+  fo.secant = true;
+  return fo;
+}
+
 // Column events of a crack grown by da/dN = C DK^m from the tip of `o` to a = 0.3 m in a strip
 // of width b = 0.75 m, 10^4 integration steps per column; the first `transient` columns are
 // crossed in 100 cycles each whatever Delta K (the growth away from a cut notch). Returns the
@@ -287,18 +303,14 @@ std::pair<std::vector<BarEvent>, double> paris_crack(const FrontOptions& o, doub
 // centre (the fronts' mean less L). The mean over a column (L / the cycles it takes, a
 // harmonic mean) differs from the rate at its centre by a share of order m^2 (L / a)^2 / 8,
 // under 0.4 % here, so the fit gives m back within 1 % (the data have no noise, so its
-// interval is narrow and need not cover m). Evenly spaced points in N would put most intervals in the slow start.
+// interval is narrow and need not cover m). Evenly spaced points in N would put most
+// intervals in the slow start.
 TEST(Fatigue, SecantRatesFollowAParisLawOnACoarseLattice) {
   const double f = 100.0, C = 3.0e-28, m = 4.0;
-  FrontOptions o = plate();
-  o.L = 0.005;
-  o.tip = 0.15;
+  const FrontOptions o = coarse_plate();
   const CyclicLoad load = constant_load(f, 1000.0);
   const auto [e, N] = paris_crack(o, f, C, m);
-  FatigueOptions fo;
-  fo.b = 0.75;
-  fo.unstable_advance = 0.075;
-  fo.secant = true;
+  FatigueOptions fo = secant_options();
   const FatigueAnalysis r = analyze_fatigue(e, {}, o, load, fo, N / f + 1.0);
   EXPECT_FALSE(r.unstable_t.has_value());
   ASSERT_TRUE(r.paris.has_value()) << r.note;
@@ -313,15 +325,10 @@ TEST(Fatigue, SecantRatesFollowAParisLawOnACoarseLattice) {
 // m within 1 %, and the note says how many intervals it left out.
 TEST(Fatigue, FitAfterLeavesTheGrowthFromTheNotchOut) {
   const double f = 100.0, C = 3.0e-28, m = 4.0;
-  FrontOptions o = plate();
-  o.L = 0.005;
-  o.tip = 0.15;
+  const FrontOptions o = coarse_plate();
   const CyclicLoad load = constant_load(f, 1000.0);
   const auto [e, N] = paris_crack(o, f, C, m, 4);
-  FatigueOptions fo;
-  fo.b = 0.75;
-  fo.unstable_advance = 0.075;
-  fo.secant = true;
+  FatigueOptions fo = secant_options();
   const FatigueAnalysis all = analyze_fatigue(e, {}, o, load, fo, N / f + 1.0);
   ASSERT_TRUE(all.paris.has_value()) << all.note;
   EXPECT_GT(std::abs(all.paris->m - m), 0.1 * m) << all.paris->m;
@@ -340,15 +347,10 @@ TEST(Fatigue, FitAfterLeavesTheGrowthFromTheNotchOut) {
 // exponent within 1 %. A softening far from the crack (outside the band) does not count.
 TEST(Fatigue, FitElasticStopsAtTheFirstSofteningNearTheCrack) {
   const double f = 100.0, C = 3.0e-28, m = 4.0;
-  FrontOptions o = plate();
-  o.L = 0.005;
-  o.tip = 0.15;
+  const FrontOptions o = coarse_plate();
   const CyclicLoad load = constant_load(f, 1000.0);
   const auto [e, N] = paris_crack(o, f, C, m);
-  FatigueOptions fo;
-  fo.b = 0.75;
-  fo.unstable_advance = 0.075;
-  fo.secant = true;
+  FatigueOptions fo = secant_options();
   const std::vector<FrontStep> front = damage_front(e, o);
   ASSERT_GT(front.size(), 30u);
   const double t_soft = front[20].t + 1e-6;

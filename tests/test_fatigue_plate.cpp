@@ -184,7 +184,7 @@ TEST(FatigueRun, SmallPlateWritesTheFatigueOutputs) {
   std::ifstream csv(out + "/fatigue.csv");
   std::string head;
   std::getline(csv, head);
-  EXPECT_EQ(head, "N,a,da_dN,delta_K");
+  EXPECT_EQ(head, "N,a,da_dN,delta_K,in_fit");
   EXPECT_TRUE(s["stopped_by"].is_null());
   fs::remove_all(out);
 }

@@ -511,23 +511,20 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   o.b = opt("fatigue_width", width);
   o.points = static_cast<std::size_t>(opt("fatigue_points", 10.0));
   o.unstable_advance = opt("fatigue_unstable_advance", 0.1 * width);
-  const std::string window =
-      !window_override.empty()
-          ? window_override
-          : (an ? (*an)["fatigue_window"].value_or(std::string("constant")) : "constant");
-  if (window != "constant" && window != "cycles")
-    throw InputError(fmt::format("fatigue window: expected \"constant\" or \"cycles\", got "
-                                 "\"{}\"",
-                                 window));
+  // A choice between two words: the command line's, else the case's, else the first.
+  auto choice = [&](const std::string& given, const char* key, const char* first,
+                    const char* second) {
+    const std::string v = !given.empty() ? given
+                          : an           ? (*an)[key].value_or(std::string(first))
+                                         : std::string(first);
+    if (v != first && v != second)
+      throw InputError(
+          fmt::format("{}: expected \"{}\" or \"{}\", got \"{}\"", key, first, second, v));
+    return v;
+  };
+  const std::string window = choice(window_override, "fatigue_window", "constant", "cycles");
   o.from_first_cycle = window == "cycles";
-  const std::string rate_method =
-      !rate_override.empty()
-          ? rate_override
-          : (an ? (*an)["fatigue_rate"].value_or(std::string("points")) : "points");
-  if (rate_method != "points" && rate_method != "secant")
-    throw InputError(fmt::format("fatigue rate: expected \"points\" or \"secant\", got "
-                                 "\"{}\"",
-                                 rate_method));
+  const std::string rate_method = choice(rate_override, "fatigue_rate", "points", "secant");
   o.secant = rate_method == "secant";
   o.fit_after = opt("fatigue_fit_after", 0.0);
   o.fit_elastic = an && (*an)["fatigue_fit_elastic"].value_or(false);
@@ -539,9 +536,10 @@ FatigueAnalysis analyze_fatigue_dir(const std::string& dir, const std::string& w
   const auto broken = to_bar_events(read_bar_events(dir, rg, "broken"), g.a_lo);
   FatigueAnalysis r = analyze_fatigue(softening, broken, fo, load, o, t_end);
 
-  std::string rows = "N,a,da_dN,delta_K\n";
+  std::string rows = "N,a,da_dN,delta_K,in_fit\n";
   for (const FatigueRow& w : r.rows)
-    rows += fmt::format("{:.6g},{:.9g},{:.6g},{:.6g}\n", w.N, w.a, w.da_dN, w.delta_K);
+    rows += fmt::format("{:.6g},{:.9g},{:.6g},{:.6g},{:d}\n", w.N, w.a, w.da_dN, w.delta_K,
+                        w.in_fit ? 1 : 0);
   write_file(dir + "/fatigue.csv", rows);
   // The fronts and each column's first times, for the pictures.
   const std::vector<double> first_p = column_first_times(first_damage(softening, broken), fo);

@@ -134,22 +134,21 @@ DistributedBody::DistributedBody(BuiltCase& c, ProcessGrid grid, int rank)
   if (rank == 0)
     c.warnings = table.warnings(); // those of the case's values (the same on every process)
   Conditions conditions = subdomain_conditions(sub, whole, local, c.conditions);
-  std::vector<index_t> precracked;
-  for (index_t b : c.precracked) {
-    const BarAddress a = whole.bar_address(b);
-    const FamilyInfo& fl = local.family(a.family);
-    if (a.j >= sub.y.w0 && a.j - sub.y.w0 < fl.nj && a.k >= sub.z.w0 && a.k - sub.z.w0 < fl.nk)
-      precracked.push_back(local.bar(a.family, a.i, a.j - sub.y.w0, a.k - sub.z.w0));
-  }
-  std::sort(precracked.begin(), precracked.end());
-  // The same for the bars without a fatigue life, present here as owned or ghost bars.
-  std::vector<index_t> lifeless;
-  for (index_t b : c.lifeless) {
-    const BarAddress a = whole.bar_address(b);
-    const FamilyInfo& fl = local.family(a.family);
-    if (a.j >= sub.y.w0 && a.j - sub.y.w0 < fl.nj && a.k >= sub.z.w0 && a.k - sub.z.w0 < fl.nk)
-      lifeless.push_back(local.bar(a.family, a.i, a.j - sub.y.w0, a.k - sub.z.w0));
-  }
+  // The body's bars of a list that lie in this window (owned or ghost), in its numbering.
+  auto in_window = [&](const std::vector<index_t>& body_bars) {
+    std::vector<index_t> bars;
+    for (index_t b : body_bars) {
+      const BarAddress a = whole.bar_address(b);
+      const FamilyInfo& fl = local.family(a.family);
+      if (a.j >= sub.y.w0 && a.j - sub.y.w0 < fl.nj && a.k >= sub.z.w0 &&
+          a.k - sub.z.w0 < fl.nk)
+        bars.push_back(local.bar(a.family, a.i, a.j - sub.y.w0, a.k - sub.z.w0));
+    }
+    std::sort(bars.begin(), bars.end());
+    return bars;
+  };
+  std::vector<index_t> precracked = in_window(c.precracked);
+  const std::vector<index_t> lifeless = in_window(c.lifeless); // without a fatigue life
   SolverOptions options = c.options;
   options.defer_time_step = true; // the body's step, below
   run_ = std::make_unique<SubdomainRun>(sub, std::move(local), std::move(table),
