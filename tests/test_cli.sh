@@ -141,6 +141,11 @@ sed -e 's/^e_p = 1.0e-4 .*/e_p = 1.0e-4\nlaw = "bilinear_fatigue"\n\n[fatigue]\n
 "$LDEM" run "$T/fatigue.toml" --out "$T/fat1" --no-plot --threads 1 >/dev/null 2>"$T/stderr" || bad "fatigue run: $(cat "$T/stderr")"
 "$LDEM" run "$T/fatigue.toml" --out "$T/fat2" --no-plot --threads 2 >/dev/null 2>&1
 head -1 "$T/fat1/energy.csv" | grep -q ",damping_dissipated,fatigue_dissipated,balance_error$" && ok || bad "fatigue column: $(head -1 "$T/fat1/energy.csv")"
+# The tutorial plate is damped; without damping a fatigue case gets a warning.
+! grep -q "time.damping = 0 with a fatigue law" "$T/stderr" && ok || bad "damped fatigue case warned: $(cat "$T/stderr")"
+sed -e 's/^damping = .*//' "$T/fatigue.toml" >"$T/undamped.toml"
+"$LDEM" check "$T/undamped.toml" 2>&1 >/dev/null | grep -q "warning: time.damping = 0 with a fatigue law" && ok ||
+  bad "no warning for an undamped fatigue case"
 same_fatigue() {
   local f
   for f in energy.csv events.csv probes.csv $(ls "$T/fat1" | grep '\.vtu$'); do

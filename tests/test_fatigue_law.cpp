@@ -76,6 +76,29 @@ TEST(FatigueLaw, ConstantAmplitudeCyclesBreakABarAfterOneOverADm) {
   }
 }
 
+// Why a fatigue run needs damping (docs/validation/fatigue.md): one wiggle larger than the
+// gate inside a rising half-cycle splits it. The path 0 -> D/2 -> D/2 - 2g -> D -> 0 -> D/2
+// (straight lines, sampled finely, the turning points among the samples) confirms the peak
+// D/2 (range D/2), the valley D/2 - 2g (range 2g), the peak D (range D/2 + 2g) and the valley
+// 0 (range D), so it uses A/2 [(D/2)^m + (2g)^m + (D/2 + 2g)^m + D^m] of the life. Rainflow
+// counting would take the whole rise, A/2 [D^m + D^m] + A (2g)^m: at m = 6 the rise counts
+// 1/28 of its range's share ((1/2)^6 + (0.52)^6 = 0.035).
+TEST(FatigueLaw, AWiggleAboveTheGateSplitsAHalfCycle) {
+  const double D = 1e-4, g = 1e-6, m = 6.0, A = 1.0 / std::pow(D, m);
+  const FatigueConstants law = law_with(A, m, 0.0, g);
+  const double corners[] = {0.0, D / 2, D / 2 - 2 * g, D, 0.0, D / 2};
+  double used = 0.0, turn = 0.0, extreme = 0.0;
+  for (std::size_t k = 0; k + 1 < std::size(corners); ++k)
+    for (int n = 1; n <= 100; ++n)
+      used += BilinearFatigueLaw::count(law, corners[k] + (corners[k + 1] - corners[k]) * n / 100.0,
+                                        turn, extreme);
+  const double expected =
+      A / 2 *
+      (std::pow(D / 2, m) + std::pow(2 * g, m) + std::pow(D / 2 + 2 * g, m) + std::pow(D, m));
+  EXPECT_NEAR(used, expected, 1e-12 * expected);
+  EXPECT_LT(used, 0.6 * A * std::pow(D, m)); // well below rainflow's A D^m
+}
+
 // Half-cycles at or below the threshold use no life; above it, the full A D^m / 2.
 TEST(FatigueLaw, RangesAtOrBelowTheThresholdUseNoLife) {
   const double D = 1e-4, m = 4.0, A = 1.0 / (100.0 * std::pow(D, m));
@@ -314,8 +337,7 @@ tutorial_breaks(bool jump, double cycles, const std::string& out,
     s.output.vtu = false;
     s.output.energy_every = 100;
   };
-  EXPECT_EQ(run_command(std::string(LDEM_SOURCE_DIR) + "/cases/tutorial/notched_plate.toml", o),
-            0);
+  EXPECT_EQ(run_command(std::string(LDEM_SOURCE_DIR) + "/cases/tutorial/notched_plate.toml", o), 0);
   // Cycles jumped before each energy row's state; a break at time t comes after the jumps
   // made at rows before t (a jump follows its row).
   std::vector<std::pair<double, double>> jumped;
@@ -389,14 +411,13 @@ TEST(FatigueLaw, OnlyTheBarsInTheFatigueBoxHaveALife) {
   const auto whole = tutorial_breaks(false, 32.0, dir + "whole");
   ASSERT_GE(whole.size(), 1u);
   const auto band =
-      tutorial_breaks(false, 32.0, dir + "band", std::array<Vec3, 2>{Vec3{0.0, 0.0, 0.045},
-                                                                    Vec3{0.2, 0.005, 0.055}});
+      tutorial_breaks(false, 32.0, dir + "band",
+                      std::array<Vec3, 2>{Vec3{0.0, 0.0, 0.045}, Vec3{0.2, 0.005, 0.055}});
   ASSERT_GE(band.size(), 1u);
   EXPECT_EQ(band[0].first, whole[0].first);
   EXPECT_EQ(band[0].second, whole[0].second);
-  const auto top =
-      tutorial_breaks(false, 32.0, dir + "top", std::array<Vec3, 2>{Vec3{0.0, 0.0, 0.075},
-                                                                   Vec3{0.2, 0.005, 0.1}});
+  const auto top = tutorial_breaks(
+      false, 32.0, dir + "top", std::array<Vec3, 2>{Vec3{0.0, 0.0, 0.075}, Vec3{0.2, 0.005, 0.1}});
   EXPECT_TRUE(top.empty()) << top.size() << " bars broke";
   for (const char* d : {"whole", "band", "top"})
     std::filesystem::remove_all(dir + d);

@@ -290,6 +290,13 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     c.options.step.end = s.end_time;
     c.options.damping = s.damping;
     c.options.law = find_law(s.law);
+    if (s.material.fatigue && s.damping == 0.0)
+      c.warnings.push_back(
+          "time.damping = 0 with a fatigue law: the ringing each break sets off stays in the "
+          "body, and where it passes the cycle count's gate it splits a load cycle's strain "
+          "range into smaller ranges, and the bars live far longer (200 times on the LEFM plate of "
+          "docs/validation/fatigue.md); give the damping that a specimen's "
+          "vibrations have, or a gate above the ringing");
     if (s.material.fatigue && s.material.fatigue->box) {
       const auto& [lo, hi] = *s.material.fatigue->box;
       for (index_t b = 0; b < lat.num_bars(); ++b) {
@@ -305,7 +312,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     }
     if (with_simulation) {
       BarTable table(lat, s.material, fields);
-      c.warnings = table.warnings();
+      c.warnings.insert(c.warnings.end(), table.warnings().begin(), table.warnings().end());
       c.sim = std::make_unique<Simulation>(std::move(lat), std::move(table), std::move(cond),
                                            c.options, c.precracked);
       remove_fatigue_life(*c.sim, c.lifeless);

@@ -132,7 +132,9 @@ DistributedBody::DistributedBody(BuiltCase& c, ProcessGrid grid, int rank)
   numbers_.ductility = table.ductility_summary();
   numbers_.per_bar = table.per_bar();
   if (rank == 0)
-    c.warnings = table.warnings(); // those of the case's values (the same on every process)
+    c.warnings.insert(c.warnings.end(), table.warnings().begin(),
+                      table.warnings().end()); // those of the case's values (the same on every
+                                               // process)
   Conditions conditions = subdomain_conditions(sub, whole, local, c.conditions);
   // The body's bars of a list that lie in this window (owned or ghost), in its numbering.
   auto in_window = [&](const std::vector<index_t>& body_bars) {
@@ -140,8 +142,7 @@ DistributedBody::DistributedBody(BuiltCase& c, ProcessGrid grid, int rank)
     for (index_t b : body_bars) {
       const BarAddress a = whole.bar_address(b);
       const FamilyInfo& fl = local.family(a.family);
-      if (a.j >= sub.y.w0 && a.j - sub.y.w0 < fl.nj && a.k >= sub.z.w0 &&
-          a.k - sub.z.w0 < fl.nk)
+      if (a.j >= sub.y.w0 && a.j - sub.y.w0 < fl.nj && a.k >= sub.z.w0 && a.k - sub.z.w0 < fl.nk)
         bars.push_back(local.bar(a.family, a.i, a.j - sub.y.w0, a.k - sub.z.w0));
     }
     std::sort(bars.begin(), bars.end());
@@ -164,8 +165,8 @@ void DistributedBody::agree_on_body() {
   try {
     combine_numbers(whole);
     stable_ = distributed_stable_step(*run_, whole);
-    dt_ = time_step_by_rule(c.options.step, stable_, numbers_.ranges.E[1],
-                            numbers_.ranges.rho[0], whole.L(), c.options.damping);
+    dt_ = time_step_by_rule(c.options.step, stable_, numbers_.ranges.E[1], numbers_.ranges.rho[0],
+                            whole.L(), c.options.damping);
   } catch (const InputError& e) {
     throw InputError(located(c.spec, c.path, e.what()));
   }

@@ -49,7 +49,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"fatigue", "A", "float", "required", "1/cycle", 0, kInf, true, false, "", "Life a cycle of tensile strain range 1 uses up in a bar of length `length`: a bar under cycles of range D breaks after 1 / (A D^m) of them. Bars of length l0 take A (l0 / length)^(m/2 - 1), which keeps Paris' C independent of L."},
     {"fatigue", "m", "float", "required", "", 0, 100, true, false, "", "Exponent of the strain range."},
     {"fatigue", "threshold", "float", "0", "", 0, kInf, false, false, "", "Half-cycles of strain range at or below it use no life."},
-    {"fatigue", "gate", "float", "-", "", 0, kInf, true, false, "", "Default 1 % of the bar's e_p. A peak or valley of a bar's tensile strain counts once the strain has come back from it by more than this: smaller oscillations (ringing) are not cycles."},
+    {"fatigue", "gate", "float", "-", "", 0, kInf, true, false, "", "Default 1 % of the bar's e_p. A peak or valley of a bar's tensile strain counts once the strain has come back from it by more than this: smaller oscillations (ringing) are not cycles. Larger ones split a load cycle's range into smaller ranges: a fatigue run needs time.damping that takes the ringing of each break out within a load cycle (docs/model.md, \"Fatigue\")."},
     {"fatigue", "count_every", "integer", "10", "steps", 1, 1e6, false, false, "", "The strains are sampled for the count every this many steps: a turning point is found to within the strain's change over that many steps (time steps are far shorter than any load cycle; ringing is kept out by the gate)."},
     {"fatigue", "jump", "bool", "false", "", -kInf, kInf, false, false, "", "Cycle jumping, once the cyclic load has reached its constant amplitude (the end of its growing_sine's n_cycles): resolve jump_window cycles, take each bar's life used per cycle over them, and skip as many cycles as leave at most jump_breaks bars at the end of their life; then resolve again. energy.csv gains a column jumped_cycles."},
     {"fatigue", "jump_window", "integer", "4", "cycles", 1, 1e6, false, false, "", "Load cycles resolved between two jumps (the life each bar uses per cycle is measured over them)."},
@@ -112,7 +112,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"time", "safety", "float", "0.9", "", 0, 1, true, false, "", "Fraction of the stable step (rule = \"safety\")."},
     {"time", "dt", "float", "-", "s", 0, 1e3, true, false, "", "Time step (rule = \"dt\")."},
     {"time", "stop_displacement", "float", "-", "m", 0, kInf, true, false, "", "End the run normally, before `end`, once a node moves farther than this from its place (a body that comes apart under loads); the outputs, analyses and plots are made as at `end`, and summary.json records `stopped_by`."},
-    {"time", "damping", "float", "0", "1/s", 0, kInf, false, false, "", "Mass-proportional damping coefficient a (C = a M)."},
+    {"time", "damping", "float", "0", "1/s", 0, kInf, false, false, "", "Mass-proportional damping coefficient a (C = a M): the amplitude of every mode above a / (4 pi) Hz decays as exp(-a t / 2). Fatigue runs need it (see fatigue.gate)."},
 
     {"output", "energy_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between rows of energy.csv and probes.csv; 0: about 500 rows."},
     {"output", "vtu_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between lattice snapshots; 0: about 20."},
