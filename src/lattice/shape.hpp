@@ -1,0 +1,67 @@
+// Bodies that are not a full box: an ordered list of operations that add or remove the
+// modules whose centres lie inside a shape, on the module grid of a Lattice.
+#pragma once
+
+#include "lattice/lattice.hpp"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace ldem {
+
+// A solid. A module belongs to it when its centre does (boundaries included).
+struct Shape {
+  enum class Type : std::uint8_t { Box, Cylinder, Sphere, HalfSpace, Mask };
+  Type type = Type::Box;
+  // Box: the corners lo and hi, then turned by `angle` (radians, right-handed) about the axis
+  // `axis` (0, 1, 2) through its centre; axis -1: not turned.
+  Vec3 lo, hi;
+  int axis = -1;
+  double angle = 0.0;
+  // Cylinder: the segment from a to b is its axis, `radius` its radius; sphere: centre a.
+  Vec3 a, b;
+  double radius = 0.0;
+  // Half-space: the points x with (x - a) . normal >= 0, the side the normal points to.
+  Vec3 normal;
+  // Mask: one value per module of the grid, i fastest (i + nx (j + ny k)); nonzero is inside.
+  std::shared_ptr<const std::vector<std::uint8_t>> mask;
+
+  bool contains(Vec3 p) const; // not for masks
+};
+
+struct ShapeOp {
+  bool add = false; // add the shape's modules, or remove them
+  Shape shape;
+};
+
+// The modules of a body, on the grid of nx x ny x nz modules of edge L.
+struct ModuleMask {
+  index_t nx = 0, ny = 0, nz = 0;
+  std::vector<std::uint8_t> present; // 1 or 0 per module, i + nx (j + ny k)
+  std::uint64_t count = 0;           // present modules
+  // Modules removed because their piece of the body (the modules joined to it through faces)
+  // met a larger piece only at edges or corners: joined so, they would turn about the shared
+  // bars as about a hinge.
+  std::uint64_t hinged = 0;
+  // Pieces of the body kept: sets of modules joined through faces that share no node with
+  // each other (more than 1: the body is in separate parts).
+  std::uint64_t pieces = 0;
+  bool at(index_t i, index_t j, index_t k) const {
+    return present[i + std::size_t{nx} * (j + std::size_t{ny} * k)] != 0;
+  }
+};
+
+// Applies `ops` in order to the full box of modules, or to an empty grid when the first
+// operation adds, then removes the hinged pieces. Throws InputError when no module is left.
+ModuleMask build_module_mask(index_t nx, index_t ny, index_t nz, double L,
+                             const std::vector<ShapeOp>& ops);
+
+// Reads a NumPy .npy array of shape (nx, ny, nz), indexed [i, j, k] (C or Fortran order), of
+// booleans, integers or floats, into one byte per module (nonzero: 1), i fastest. Throws
+// InputError naming the file and what is wrong (not an .npy file, its shape, its type).
+std::vector<std::uint8_t> read_npy_mask(const std::string& path, index_t nx, index_t ny,
+                                        index_t nz);
+
+} // namespace ldem
