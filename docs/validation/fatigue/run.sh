@@ -2,8 +2,10 @@
 # The studies of docs/validation/fatigue.md. Usage, from the repository's root after the
 # release build:
 #   bash docs/validation/fatigue/run.sh seeds      # the paper's plate, fatigue law, seeds 1-3
-#   bash docs/validation/fatigue/run.sh paper      # the same case with the paper's law alone
+#   bash docs/validation/fatigue/run.sh seeds_coarse # the same on the coarse lattice
+#   bash docs/validation/fatigue/run.sh paper      # the coarse plate with the paper's law alone
 #   bash docs/validation/fatigue/run.sh exponents  # the LEFM plate with m = 3, 6, 10
+#   bash docs/validation/fatigue/run.sh undamped   # the LEFM plate (m = 6) without damping
 #   bash docs/validation/fatigue/run.sh homogeneous # the LEFM plate, every bar with a life
 #   bash docs/validation/fatigue/run.sh mesh       # the LEFM plate (m = 6) with L halved
 #   bash docs/validation/fatigue/run.sh frequency  # the LEFM plate (m = 6) at 100 Hz
@@ -35,12 +37,19 @@ run() {
 }
 
 paper=cases/fatigue/paper_plate_coarse.toml
+paper_fine=cases/fatigue/paper_plate.toml
 lefm=cases/fatigue/lefm_plate.toml
 case ${1:-} in
 seeds)
-  for s in 1 2 3; do
-    c=$(variant paper_seed$s $paper "s/seed = 1 }/seed = $s }/")
+  # The paper's lattice (L = 7.5 mm); SEEDS to choose others.
+  for s in ${SEEDS:-1 2 3}; do
+    c=$(variant paper_fine_seed$s $paper_fine "s/seed = 1 }/seed = $s }/")
     run "$c" "$out/seeds/seed$s"
+  done ;;
+seeds_coarse)
+  for s in ${SEEDS:-1 2 3}; do
+    c=$(variant paper_seed$s $paper "s/seed = 1 }/seed = $s }/")
+    run "$c" "$out/seeds_coarse/seed$s"
   done ;;
 paper)
   c=$(variant paper_bilinear $paper 's/^law = "bilinear_fatigue"/law = "bilinear"/' \
@@ -54,6 +63,10 @@ exponents)
     c=$(variant lefm_m$1 $lefm "s/^A = .*/A = $2/" "s/^m = .*/m = $1.0/" "s/^end = 6.0 /end = $3 /")
     run "$c" "$out/exponents/m$1"
   done ;;
+undamped)
+  # The m = 6 plate without damping: the ringing of each break stays in the body.
+  c=$(variant lefm_undamped $lefm '/^damping = /d')
+  run "$c" "$out/undamped/m6" ;;
 homogeneous)
   # The same plate with a fatigue life in every bar (no fatigue box).
   c=$(variant lefm_whole $lefm '/^box_min/d' '/^box_max/d' 's/^end = 6.0 /end = 1.5 /')
@@ -71,9 +84,10 @@ frequency)
     's/^energy_every = 170/energy_every = 340/' 's/^end = 6.0 /end = 12.0/')
   run "$c" "$out/frequency/f100" ;;
 threshold)
-  # A threshold of 2e-5 against the pre-crack tip's strain range of about 1.5e-5 (0.3 MPa
-  # peak) and 2.3e-5 (0.45 MPa): no growth, then growth.
-  for p in 0.3 0.45; do
+  # A threshold of 2e-5 against the pre-crack tip's strain range, about 2.7e-5 at a peak of
+  # 0.3 MPa (the first bar's life without a threshold) and in proportion to the load: 1.8e-5
+  # at 0.2 MPa (no growth) and 2.25e-5 at 0.25 MPa (PEAKS to choose others).
+  for p in ${PEAKS:-0.2 0.25 0.3}; do
     c=$(variant lefm_th_$p $lefm 's/^jump = true/jump = true\nthreshold = 2.0e-5\njump_max = 1.0e8/' \
       "s/traction = \[0.0, 0.0, 0.3e6\]/traction = [0.0, 0.0, ${p}e6]/" \
       "s/traction = \[0.0, 0.0, -0.3e6\]/traction = [0.0, 0.0, -${p}e6]/" 's/^end = 6.0 /end = 1.0 /')
@@ -92,6 +106,6 @@ monotonic)
     run "$c" "$out/monotonic/a_$a"
   done ;;
 *)
-  sed -n '2,14p' "$0"
+  sed -n '2,16p' "$0"
   exit 2 ;;
 esac
