@@ -484,20 +484,20 @@ TEST(CaseFile, TimeStepAboveTheProvenBoundIsWarned) {
   const BodyNumbers b = body_numbers(*c.sim);
   ASSERT_LT(b.stable.dt_bound, b.stable.dt);
   const double dt = std::sqrt(b.stable.dt_bound * b.stable.dt); // between the two
-  std::ofstream(path) << edit("end = 1e-4", fmt::format("end = 1e-4\nrule = \"dt\"\ndt = {:.17g}", dt));
+  std::ofstream(path) << edit("end = 1e-4",
+                              fmt::format("end = 1e-4\nrule = \"dt\"\ndt = {:.17g}", dt));
   const BuiltCase above = build_case(path);
   const BodyNumbers n = body_numbers(*above.sim);
   ASSERT_EQ(n.dt, dt);
   const std::optional<std::string> w = time_step_warning(n);
   ASSERT_TRUE(w.has_value());
-  EXPECT_NE(w->find(fmt::format("is {:.0f} % above {:.4g} s", 100.0 * (dt / n.stable.dt_bound - 1.0),
-                                n.stable.dt_bound)),
+  EXPECT_NE(w->find(fmt::format("is {:.0f} % above {:.4g} s",
+                                100.0 * (dt / n.stable.dt_bound - 1.0), n.stable.dt_bound)),
             std::string::npos)
       << *w;
   EXPECT_NE(resolved_case_toml(above, n).find("warnings = ["), std::string::npos);
-  std::ofstream(path) << edit("end = 1e-4",
-                              fmt::format("end = 1e-4\nsafety = {:.6f}", 0.99 * b.stable.dt_bound /
-                                                                             b.stable.dt));
+  std::ofstream(path) << edit("end = 1e-4", fmt::format("end = 1e-4\nsafety = {:.6f}",
+                                                        0.99 * b.stable.dt_bound / b.stable.dt));
   const BuiltCase below = build_case(path);
   EXPECT_FALSE(time_step_warning(body_numbers(*below.sim)).has_value());
 }
@@ -576,8 +576,9 @@ traction = [0, 0, 2e6]
   // A force per node: its total is the force times the nodes; its remote stress the total
   // over the section.
   const std::string traction_case = edit("dofs = \"z\"", "dofs = \"x\"") + load;
-  std::ofstream(path) << std::string(traction_case).replace(traction_case.find("traction = [0, 0, 2e6]"),
-                                                       22, "force = [0, 0, 1000]");
+  std::ofstream(path) << std::string(traction_case)
+                             .replace(traction_case.find("traction = [0, 0, 2e6]"), 22,
+                                      "force = [0, 0, 1000]");
   const BuiltCase f = build_case(path);
   EXPECT_NEAR(load_total_force(f, 0, 0.0), 1e4, 1e-9);
   rg.resolved = toml::parse(resolved_case_toml(f, body_numbers(*f.sim)));
@@ -585,8 +586,9 @@ traction = [0, 0, 2e6]
 
   // Refused: a traction on a set whose nodes' areas are not known, both force and traction,
   // neither.
-  const std::string on_box = std::string(traction_case).replace(traction_case.find("set = \"top\"\ntraction"),
-                                                           11, "set = \"block\"");
+  const std::string on_box =
+      std::string(traction_case)
+          .replace(traction_case.find("set = \"top\"\ntraction"), 11, "set = \"block\"");
   std::string e = build_error_of(on_box);
   EXPECT_NE(e.find("load[0].traction: load \"pull\" has a traction: expected a node set given "
                    "by face or face_centres, whose nodes' areas are known; got \"block\", box"),
@@ -595,11 +597,94 @@ traction = [0, 0, 2e6]
   e = build_error_of(edit("dofs = \"z\"", "dofs = \"x\"") + load + "force = [0, 0, 1]\n");
   EXPECT_NE(e.find("load[0].traction"), std::string::npos) << e;
   EXPECT_NE(e.find("expected force or traction, not both"), std::string::npos) << e;
-  e = build_error_of(std::string(traction_case).replace(traction_case.find("traction = [0, 0, 2e6]"), 22,
-                                                   ""));
-  EXPECT_NE(e.find("expected force (N on each node) or traction (Pa on a face)"),
-            std::string::npos)
+  e = build_error_of(
+      std::string(traction_case).replace(traction_case.find("traction = [0, 0, 2e6]"), 22, ""));
+  EXPECT_NE(e.find("expected force (N on each node) or traction (Pa on a face)"), std::string::npos)
       << e;
+}
+
+// Node sets by shape, on the good case's 4 x 1 x 4 modules of L = 0.01 m (corners at
+// multiples of L, y = 0 and 0.01; centres at odd multiples of L/2, y = 0.005):
+// - a sphere of radius L about the corner (0.02, 0, 0.02): the corner itself, its neighbours
+//   along +-x, +-z and +y (none below y = 0), 6 corners, and the 4 centres around it at
+//   L sqrt(3) / 2: 10 nodes;
+// - a thin cylinder along y through the centre of module (1, 0, 1): that centre alone;
+// - the half-space z >= 0.035 m: the 5 x 2 corners of the top face and the 4 centres of the
+//   top row of modules at z = 0.035 (on the plane, taken): 14 nodes;
+// - a box 0.04 m along x and 1 mm along z about (0.02, 0.0005), turned by 90 degrees about y:
+//   1 mm along x and 0.04 m along z about that point, which holds the corners at x = 0.02 and
+//   z = 0, 0.01 and 0.02 (y = 0 and 0.01): 6 nodes.
+TEST(CaseFile, NodeSetsByShapeTakeTheNodesInside) {
+  const std::string path = test_case_path();
+  const std::string sets = R"(
+[[node_set]]
+name = "ball"
+shape = { type = "sphere", centre = [0.02, 0, 0.02], radius = 0.01 }
+
+[[node_set]]
+name = "pin"
+shape = { type = "cylinder", start = [0.015, -1, 0.015], end = [0.015, 1, 0.015], radius = 0.001 }
+
+[[node_set]]
+name = "upper"
+shape = { type = "half_space", point = [0, 0, 0.035], normal = [0, 0, 2] }
+
+[[node_set]]
+name = "turned"
+shape = { type = "box", min = [0, -1, 0], max = [0.04, 1, 0.001], axis = "y", angle = 90 }
+)";
+  std::ofstream(path) << kGood + sets;
+  const BuiltCase c = build_case(path);
+  auto count = [&](const std::string& name) {
+    for (const NodeSet& s : c.sets)
+      if (s.name == name)
+        return s.nodes.size();
+    return std::size_t{0};
+  };
+  EXPECT_EQ(count("ball"), 10u);
+  EXPECT_EQ(count("pin"), 1u);
+  EXPECT_EQ(count("upper"), 14u);
+  EXPECT_EQ(count("turned"), 6u);
+  // The resolved case gives the shape back as the case gave it, and the count.
+  const toml::table resolved = toml::parse(resolved_case_toml(c, body_numbers(*c.sim)));
+  const toml::table& ball = *resolved["node_set"][1].as_table();
+  EXPECT_EQ(ball["shape"]["type"].value_or(std::string()), "sphere");
+  EXPECT_DOUBLE_EQ(ball["shape"]["radius"].value_or(0.0), 0.01);
+  EXPECT_EQ(ball["nodes_selected"].value_or(0), 10);
+  EXPECT_DOUBLE_EQ(resolved["node_set"][4]["shape"]["angle"].value_or(0.0), 90.0);
+}
+
+// Bad shapes are refused with the key and what was expected.
+TEST(CaseFile, BadShapesAreRefused) {
+  auto with = [](const std::string& shape) {
+    return error_of(kGood + "\n[[node_set]]\nname = \"s\"\nshape = " + shape + "\n");
+  };
+  EXPECT_NE(with(R"({ type = "cone", centre = [0, 0, 0] })")
+                .find("node_set[1].shape.type: expected one of \"box\", \"cylinder\""),
+            std::string::npos)
+      << with(R"({ type = "cone" })");
+  EXPECT_NE(with(R"({ type = "sphere", centre = [0, 0, 0] })")
+                .find("node_set[1].shape.radius: missing: a \"sphere\" shape needs radius"),
+            std::string::npos);
+  EXPECT_NE(with(R"({ type = "cylinder", start = [0, 0, 0], end = [0, 0, 0], radius = 1 })")
+                .find("node_set[1].shape.end: expected an end apart from start"),
+            std::string::npos);
+  EXPECT_NE(with(R"({ type = "box", min = [0, 0, 0], max = [1, 1, 1], axis = "y" })")
+                .find("node_set[1].shape.angle: missing: axis needs angle"),
+            std::string::npos);
+  EXPECT_NE(with(R"({ type = "box", min = [0, 0, 0], max = [1, 1, 1], centre = [0, 0, 0] })")
+                .find("node_set[1].shape.centre: does not apply to a \"box\" shape"),
+            std::string::npos);
+  EXPECT_NE(with(R"({ type = "box", min = [0, 0, 0], max = [1, -1, 1] })")
+                .find("node_set[1].shape.max: expected a corner at or above min"),
+            std::string::npos);
+  EXPECT_NE(with(R"({ type = "half_space", point = [0, 0, 0], normal = [0, 0, 0] })")
+                .find("node_set[1].shape.normal: expected a vector that is not zero"),
+            std::string::npos);
+  EXPECT_NE(with(R"("sphere")").find("node_set[1].shape: expected a shape"), std::string::npos);
+  EXPECT_NE(with(R"({ type = "sphere", centre = [0, 0, 0], radius = -1 })")
+                .find("node_set[1].shape.radius"),
+            std::string::npos);
 }
 
 } // namespace

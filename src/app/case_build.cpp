@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
+#include <numbers>
 #include <sstream>
 #include <toml++/toml.h>
 #include <variant>
@@ -24,6 +25,8 @@ std::vector<index_t> select(const Lattice& lat, const NodeSetSpec& s) {
     return select_face_module_centres(lat, s.face);
   case NodeSetSpec::Kind::Box:
     return select_box(lat, s.lo, s.hi);
+  case NodeSetSpec::Kind::Shape:
+    return select_shape(lat, s.shape);
   case NodeSetSpec::Kind::All:
     break;
   }
@@ -39,10 +42,37 @@ std::string how(const NodeSetSpec& s) {
   case NodeSetSpec::Kind::Box:
     return fmt::format("box [{:g}, {:g}, {:g}] to [{:g}, {:g}, {:g}]", s.lo.x, s.lo.y, s.lo.z,
                        s.hi.x, s.hi.y, s.hi.z);
+  case NodeSetSpec::Kind::Shape:
+    return s.shape.describe();
   case NodeSetSpec::Kind::All:
     break;
   }
   return "all nodes";
+}
+
+// A shape as the case file gives it (the resolved case).
+toml::table shape_table(const Shape& sh) {
+  auto vec = [](Vec3 v) { return toml::array{v.x, v.y, v.z}; };
+  switch (sh.type) {
+  case Shape::Type::Box: {
+    toml::table t{{"type", "box"}, {"min", vec(sh.lo)}, {"max", vec(sh.hi)}};
+    if (sh.axis >= 0) {
+      t.insert("axis", std::string(1, "xyz"[sh.axis]));
+      t.insert("angle", sh.angle * 180.0 / std::numbers::pi);
+    }
+    return t;
+  }
+  case Shape::Type::Cylinder:
+    return toml::table{
+        {"type", "cylinder"}, {"start", vec(sh.a)}, {"end", vec(sh.b)}, {"radius", sh.radius}};
+  case Shape::Type::Sphere:
+    return toml::table{{"type", "sphere"}, {"centre", vec(sh.a)}, {"radius", sh.radius}};
+  case Shape::Type::HalfSpace:
+    return toml::table{{"type", "half_space"}, {"point", vec(sh.a)}, {"normal", vec(sh.normal)}};
+  case Shape::Type::Mask:
+    break;
+  }
+  return toml::table{{"type", "mask"}};
 }
 
 // A traction load's nodes weighted by the area each stands for (docs/model.md, 6); none for a
@@ -451,7 +481,9 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     else if (n.kind == NodeSetSpec::Kind::Box) {
       t.insert("box_min", vec(n.lo));
       t.insert("box_max", vec(n.hi));
-    } else
+    } else if (n.kind == NodeSetSpec::Kind::Shape)
+      t.insert("shape", shape_table(n.shape));
+    else
       t.insert("all", true);
     t.insert("nodes_selected", static_cast<std::int64_t>(c.sets[i].nodes.size()));
     sets.push_back(t);

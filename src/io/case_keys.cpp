@@ -77,6 +77,19 @@ const std::vector<KeyDecl>& case_keys() {
     {"node_set", "box_min", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "With box_max: every node inside this box (faces included)."},
     {"node_set", "box_max", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "See box_min."},
     {"node_set", "all", "bool", "false", "", -kInf, kInf, false, false, "", "Every node."},
+    {"node_set", "shape", "table", "-", "", -kInf, kInf, false, false, "", "Every node inside this shape (`shape = { type = \"sphere\", centre = [...], radius = ... }`; boundaries included, to within 1e-9 L; see the shape keys below): a loading pad, a support, a gauge's region."},
+
+    {"shape", "type", "string", "required", "", -kInf, kInf, false, false, "\"box\", \"cylinder\", \"sphere\", \"half_space\"", "The kind of solid; only its own keys apply."},
+    {"shape", "min", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "box: the corner with the smallest coordinates (before a turn)."},
+    {"shape", "max", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "box: the opposite corner; at or above min on every axis."},
+    {"shape", "axis", "string", "-", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "box, with angle: the box is turned about the axis along this direction through its centre."},
+    {"shape", "angle", "float", "-", "degrees", -360, 360, false, false, "", "box, with axis: the turn, right-handed about the axis."},
+    {"shape", "start", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "cylinder: the centre of one end; the axis runs from start to end, in any direction."},
+    {"shape", "end", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "cylinder: the centre of the other end (not start)."},
+    {"shape", "radius", "float", "-", "m", 0, kInf, true, false, "", "cylinder, sphere: the radius."},
+    {"shape", "centre", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "sphere: the centre."},
+    {"shape", "point", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "half_space: a point on its boundary plane."},
+    {"shape", "normal", "[3 floats]", "-", "", -kInf, kInf, false, false, "", "half_space: a vector out of the plane towards the inside (not zero): the points x with (x - point) . normal >= 0."},
 
     {"fixed", "set", "string", "required", "", -kInf, kInf, false, false, "", "Node set whose DOF are held at zero displacement."},
     {"fixed", "dofs", "string", "\"xyz\"", "", -kInf, kInf, false, false, "letters x, y, z", "Which DOF."},
@@ -162,7 +175,8 @@ std::string case_format_markdown() {
       "of tables:\n"
       "`[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`, `[[precrack]]`, `[[probe]]`;\n"
       "a velocity or load may carry `function = [{ type = ..., ... }, ...]`, whose terms are\n"
-      "summed. Coordinates are in metres from the box's corner at the origin; the box spans\n"
+      "summed; a node set may be a shape, `shape = { type = ..., ... }`. Coordinates are in\n"
+      "metres from the box's corner at the origin; the box spans\n"
       "`[0, nx L] x [0, ny L] x [0, nz L]`.\n";
   const char* last = "";
   for (const KeyDecl& k : case_keys()) {
@@ -173,6 +187,7 @@ std::string case_format_markdown() {
       md += fmt::format("\n## {}\n\n| key | type | default | unit | allowed | meaning |\n"
                         "|---|---|---|---|---|---|\n",
                         t == "field"      ? "material fields (`E = { type = ... }`)"
+                        : t == "shape"    ? "shapes (`shape = { type = ... }`)"
                         : t == "function" ? "function terms (`function = [{...}]`)"
                         : array           ? "[[" + t + "]]"
                                           : "[" + t + "]");

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <sstream>
 #include <toml++/toml.h>
 
@@ -397,6 +398,77 @@ public:
     return f;
   }
 
+  // A shape (`key = { type = "box", ... }` in table t); `where` names the table ("node_set[0].").
+  Shape shape(const toml::table& t, const char* key, const std::string& where) const {
+    const toml::node* n = t.get(key);
+    const std::string name = where + key;
+    if (!n || !n->is_table())
+      fail(n ? n : &t, name,
+           fmt::format("expected a shape, {{ type = \"box\", \"cylinder\", \"sphere\" or "
+                       "\"half_space\", ... }}, got {}",
+                       n ? describe(*n) : "none"));
+    const toml::table& st = *n->as_table();
+    const std::string w = name + ".";
+    check_known(st, "shape", w);
+    Shape out;
+    const std::string type = get_string(st, "shape", "type", w);
+    const std::string what = fmt::format("a \"{}\" shape", type);
+    auto vec = [&](const char* k) {
+      const auto v = opt_vec3(st, "shape", k, w);
+      if (!v)
+        fail(&st, w + k, fmt::format("missing: {} needs {}", what, k));
+      return *v;
+    };
+    auto radius = [&] {
+      const auto r = opt_float(st, "shape", "radius", w);
+      if (!r)
+        fail(&st, w + "radius", fmt::format("missing: {} needs radius", what));
+      return *r;
+    };
+    if (type == "box") {
+      only(st, w, what, {"type", "min", "max", "axis", "angle"});
+      out.type = Shape::Type::Box;
+      out.lo = vec("min");
+      out.hi = vec("max");
+      if (!(out.lo.x <= out.hi.x && out.lo.y <= out.hi.y && out.lo.z <= out.hi.z))
+        fail(st.get("max"), w + "max",
+             fmt::format("expected a corner at or above min [{:g}, {:g}, {:g}] on every axis, "
+                         "got [{:g}, {:g}, {:g}]",
+                         out.lo.x, out.lo.y, out.lo.z, out.hi.x, out.hi.y, out.hi.z));
+      const auto axis = opt_string(st, "shape", "axis", w);
+      const auto angle = opt_float(st, "shape", "angle", w);
+      if (axis.has_value() != angle.has_value())
+        fail(&st, w + (axis ? "angle" : "axis"),
+             axis ? "missing: axis needs angle" : "missing: angle needs axis");
+      if (axis) {
+        out.axis = (*axis)[0] - 'x';
+        out.angle = *angle * std::numbers::pi / 180.0;
+      }
+    } else if (type == "cylinder") {
+      only(st, w, what, {"type", "start", "end", "radius"});
+      out.type = Shape::Type::Cylinder;
+      out.a = vec("start");
+      out.b = vec("end");
+      out.radius = radius();
+      if (out.a.x == out.b.x && out.a.y == out.b.y && out.a.z == out.b.z)
+        fail(st.get("end"), w + "end",
+             "expected an end apart from start (the axis), got the same point");
+    } else if (type == "sphere") {
+      only(st, w, what, {"type", "centre", "radius"});
+      out.type = Shape::Type::Sphere;
+      out.a = vec("centre");
+      out.radius = radius();
+    } else {
+      only(st, w, what, {"type", "point", "normal"});
+      out.type = Shape::Type::HalfSpace;
+      out.a = vec("point");
+      out.normal = vec("normal");
+      if (out.normal.x == 0.0 && out.normal.y == 0.0 && out.normal.z == 0.0)
+        fail(st.get("normal"), w + "normal", "expected a vector that is not zero, got [0, 0, 0]");
+    }
+    return out;
+  }
+
 private:
   std::string file_;
 };
@@ -657,11 +729,11 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     if (std::find(set_names.begin(), set_names.end(), s.name) != set_names.end())
       r.fail(t.get("name"), w + "name", fmt::format("node set \"{}\" is defined twice", s.name));
     const int ways = r.has(t, "face") + r.has(t, "face_centres") + r.has(t, "box_min") +
-                     (r.get_bool(t, "node_set", "all", w) ? 1 : 0);
+                     r.has(t, "shape") + (r.get_bool(t, "node_set", "all", w) ? 1 : 0);
     if (ways != 1)
       r.fail(&t, w + "face",
-             fmt::format("expected exactly one of face, face_centres, box_min/box_max, all = true; "
-                         "got {}",
+             fmt::format("expected exactly one of face, face_centres, box_min/box_max, shape, "
+                         "all = true; got {}",
                          ways));
     if (auto f = r.opt_string(t, "node_set", "face", w)) {
       s.kind = NodeSetSpec::Kind::Face;
@@ -669,6 +741,9 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     } else if (auto fc = r.opt_string(t, "node_set", "face_centres", w)) {
       s.kind = NodeSetSpec::Kind::FaceCentres;
       s.face = parse_face(*fc);
+    } else if (r.has(t, "shape")) {
+      s.kind = NodeSetSpec::Kind::Shape;
+      s.shape = r.shape(t, "shape", w);
     } else if (r.has(t, "box_min")) {
       s.kind = NodeSetSpec::Kind::Box;
       s.lo = *r.opt_vec3(t, "node_set", "box_min", w);

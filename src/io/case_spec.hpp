@@ -5,6 +5,7 @@
 
 #include "lattice/node_set.hpp"
 #include "lattice/precrack.hpp"
+#include "lattice/shape.hpp"
 #include "material/bar_table.hpp"
 #include "material/field.hpp"
 #include "solver/simulation.hpp"
@@ -20,9 +21,10 @@ namespace ldem {
 
 struct NodeSetSpec {
   std::string name;
-  enum class Kind { Face, FaceCentres, Box, All } kind = Kind::All;
+  enum class Kind { Face, FaceCentres, Box, Shape, All } kind = Kind::All;
   Face face = Face::XMin;
   Vec3 lo, hi;
+  ldem::Shape shape; // Kind::Shape: every node inside it
 };
 
 struct FixedSpec {

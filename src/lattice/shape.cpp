@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <numbers>
 #include <numeric>
 
 namespace ldem {
@@ -39,31 +40,60 @@ Vec3 turned(Vec3 p, Vec3 c, int axis, double angle) {
 
 } // namespace
 
-bool Shape::contains(Vec3 p) const {
+bool Shape::contains(Vec3 p, double tol) const {
   switch (type) {
   case Type::Box: {
     const Vec3 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2};
     const Vec3 q = axis < 0 ? p : turned(p, c, axis, -angle); // back into the box's frame
-    return q.x >= lo.x && q.x <= hi.x && q.y >= lo.y && q.y <= hi.y && q.z >= lo.z && q.z <= hi.z;
+    return q.x >= lo.x - tol && q.x <= hi.x + tol && q.y >= lo.y - tol && q.y <= hi.y + tol &&
+           q.z >= lo.z - tol && q.z <= hi.z + tol;
   }
   case Type::Cylinder: {
     const Vec3 d = minus(b, a), r = minus(p, a);
-    const double t = dot(r, d) / dot(d, d);
-    if (t < 0.0 || t > 1.0)
+    const double len = std::sqrt(dot(d, d)), t = dot(r, d) / (len * len);
+    if (t < -tol / len || t > 1.0 + tol / len)
       return false;
     const Vec3 off{r.x - t * d.x, r.y - t * d.y, r.z - t * d.z};
-    return dot(off, off) <= radius * radius;
+    return dot(off, off) <= (radius + tol) * (radius + tol);
   }
   case Type::Sphere: {
     const Vec3 r = minus(p, a);
-    return dot(r, r) <= radius * radius;
+    return dot(r, r) <= (radius + tol) * (radius + tol);
   }
   case Type::HalfSpace:
-    return dot(minus(p, a), normal) >= 0.0;
+    return dot(minus(p, a), normal) >= -tol * std::sqrt(dot(normal, normal));
   case Type::Mask:
     break;
   }
   return false;
+}
+
+std::string Shape::describe() const {
+  auto v = [](Vec3 q) { return fmt::format("[{:g}, {:g}, {:g}]", q.x, q.y, q.z); };
+  switch (type) {
+  case Type::Box:
+    return axis < 0 ? fmt::format("box {} to {}", v(lo), v(hi))
+                    : fmt::format("box {} to {} turned by {:g} degrees about {}", v(lo), v(hi),
+                                  angle * 180.0 / std::numbers::pi, "xyz"[axis]);
+  case Type::Cylinder:
+    return fmt::format("cylinder of radius {:g} m from {} to {}", radius, v(a), v(b));
+  case Type::Sphere:
+    return fmt::format("sphere of radius {:g} m about {}", radius, v(a));
+  case Type::HalfSpace:
+    return fmt::format("half-space through {} towards {}", v(a), v(normal));
+  case Type::Mask:
+    break;
+  }
+  return "mask";
+}
+
+std::vector<index_t> select_shape(const Lattice& lat, const Shape& shape) {
+  const double tol = 1e-9 * lat.L();
+  std::vector<index_t> out;
+  for (index_t node = 0; node < lat.num_nodes(); ++node)
+    if (shape.contains(lat.position(node), tol))
+      out.push_back(node);
+  return out;
 }
 
 ModuleMask build_module_mask(index_t nx, index_t ny, index_t nz, double L,
@@ -86,7 +116,7 @@ ModuleMask build_module_mask(index_t nx, index_t ny, index_t nz, double L,
     for (index_t k = 0; k < nz; ++k)
       for (index_t j = 0; j < ny; ++j)
         for (index_t i = 0; i < nx; ++i)
-          if (op.shape.contains({(i + 0.5) * L, (j + 0.5) * L, (k + 0.5) * L}))
+          if (op.shape.contains({(i + 0.5) * L, (j + 0.5) * L, (k + 0.5) * L}, 1e-9 * L))
             m.present[i + std::size_t{nx} * (j + std::size_t{ny} * k)] = value;
   }
 

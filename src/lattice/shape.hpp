@@ -28,8 +28,14 @@ struct Shape {
   // Mask: one value per module of the grid, i fastest (i + nx (j + ny k)); nonzero is inside.
   std::shared_ptr<const std::vector<std::uint8_t>> mask;
 
-  bool contains(Vec3 p) const; // not for masks
+  // Whether p lies in the shape grown by `tol` (boundaries included). Not for masks.
+  bool contains(Vec3 p, double tol = 0.0) const;
+  // What the shape is, for messages ("sphere of radius 0.02 m about [0.1, 0, 0.1]").
+  std::string describe() const;
 };
+
+// Every node of the lattice inside the shape (to within 1e-9 L): a node set by shape.
+std::vector<index_t> select_shape(const Lattice& lattice, const Shape& shape);
 
 struct ShapeOp {
   bool add = false; // add the shape's modules, or remove them
@@ -54,7 +60,8 @@ struct ModuleMask {
 };
 
 // Applies `ops` in order to the full box of modules, or to an empty grid when the first
-// operation adds, then removes the hinged pieces. Throws InputError when no module is left.
+// operation adds (a module is inside a shape when its centre is, to within 1e-9 L), then
+// removes the hinged pieces. Throws InputError when no module is left.
 ModuleMask build_module_mask(index_t nx, index_t ny, index_t nz, double L,
                              const std::vector<ShapeOp>& ops);
 
