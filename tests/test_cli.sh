@@ -10,6 +10,9 @@ fails=0
 pass=0
 ok() { pass=$((pass + 1)); }
 bad() { echo "FAIL: $*"; fails=$((fails + 1)); }
+# has PATTERN: the piped input holds a line matching PATTERN. It reads the input to the end (grep -q
+# stops at the first match, and the writer, killed by SIGPIPE, then fails the pipeline under pipefail).
+has() { grep -- "$1" >/dev/null; }
 GOOD="$SRC/cases/tutorial/notched_plate.toml"
 
 # expect_error NAME PATTERN CASEFILE [extra args]: exit 2, message matches, no output folder.
@@ -27,8 +30,8 @@ expect_error() {
 # variant NAME SED_EXPRESSION: the tutorial case edited.
 variant() { sed "$2" "$GOOD" >"$T/$1.toml"; echo "$T/$1.toml"; }
 
-"$LDEM" >/dev/null 2>&1 && "$LDEM" --help | grep -q "run" && ok || bad "ldem without arguments"
-"$LDEM" --version | grep -q "^ldem " && ok || bad "--version"
+"$LDEM" >/dev/null 2>&1 && "$LDEM" --help | has "run" && ok || bad "ldem without arguments"
+"$LDEM" --version | has "^ldem " && ok || bad "--version"
 
 expect_error missing_case "cannot read the case file" "$T/nope.toml"
 expect_error malformed "malformed TOML" "$(variant malformed 's/^L = 0.005/L = = 0.005/')"
@@ -140,11 +143,11 @@ sed -e 's/^e_p = 1.0e-4 .*/e_p = 1.0e-4\nlaw = "bilinear_fatigue"\n\n[fatigue]\n
   -e 's/^end = 4.0e-3 .*/end = 8.0e-3/' "$GOOD" >"$T/fatigue.toml"
 "$LDEM" run "$T/fatigue.toml" --out "$T/fat1" --no-plot --threads 1 >/dev/null 2>"$T/stderr" || bad "fatigue run: $(cat "$T/stderr")"
 "$LDEM" run "$T/fatigue.toml" --out "$T/fat2" --no-plot --threads 2 >/dev/null 2>&1
-head -1 "$T/fat1/energy.csv" | grep -q ",damping_dissipated,fatigue_dissipated,balance_error$" && ok || bad "fatigue column: $(head -1 "$T/fat1/energy.csv")"
+head -1 "$T/fat1/energy.csv" | has ",damping_dissipated,fatigue_dissipated,balance_error$" && ok || bad "fatigue column: $(head -1 "$T/fat1/energy.csv")"
 # The tutorial plate is damped; without damping a fatigue case gets a warning.
 ! grep -q "time.damping = 0 with a fatigue law" "$T/stderr" && ok || bad "damped fatigue case warned: $(cat "$T/stderr")"
 sed -e 's/^damping = .*//' "$T/fatigue.toml" >"$T/undamped.toml"
-"$LDEM" check "$T/undamped.toml" 2>&1 >/dev/null | grep -q "warning: time.damping = 0 with a fatigue law" && ok ||
+"$LDEM" check "$T/undamped.toml" 2>&1 >/dev/null | has "warning: time.damping = 0 with a fatigue law" && ok ||
   bad "no warning for an undamped fatigue case"
 same_fatigue() {
   local f
@@ -234,8 +237,8 @@ if "$LDEM" run "$T/weibull.toml" --out "$T/weibull" >/dev/null 2>"$T/stderr" && 
 sed 's/^modules = \[40, 1, 20\].*/modules = [12, 8, 10]/; s/^plane_strain = .*//; s/^origin = .*/origin = [-0.0001, -0.001, 0.02625]/; s/^edge1 = .*/edge1 = [0.0251, 0.0, 0.0]/; s/^edge2 = .*/edge2 = [0.0, 0.042, 0.0]/; s/^at = .*/at = [0.0275, 0.0025, 0.025]/' "$GOOD" >"$T/cube.toml"
 if "$LDEM" run "$T/cube.toml" --out "$T/cube" >"$T/stdout" 2>"$T/stderr" &&
   grep -q "crack.png: the crack face on, x-y (colour: z); slice y = 20 mm" "$T/stdout" && [ -s "$T/cube/crack.png" ] &&
-  "$LDEM" plot "$T/cube" --slice x=0.03 | grep -q "crack.png: slice x = 30 mm" &&
-  "$LDEM" plot "$T/cube" --view xz | grep -q "crack.png: every bar projected on the x-z plane"; then ok; else bad "3-D crack.png: $(cat "$T/stdout" "$T/stderr")"; fi
+  "$LDEM" plot "$T/cube" --slice x=0.03 | has "crack.png: slice x = 30 mm" &&
+  "$LDEM" plot "$T/cube" --view xz | has "crack.png: every bar projected on the x-z plane"; then ok; else bad "3-D crack.png: $(cat "$T/stdout" "$T/stderr")"; fi
 rm -f "$T/cube/crack.png" "$T/cube/energy.png"
 "$LDEM" plot "$T/cube" --slice y=1 >/dev/null 2>"$T/stderr"
 rc=$?
@@ -252,7 +255,7 @@ if "$LDEM" run "$FGM" --out "$T/fgm" >/dev/null 2>"$T/stderr" &&
   [ "$(head -1 "$T/fgm/crack_tip.csv")" = "time,branch,tip_x,tip_z,length,speed,speed_se,softening_length,softened_ahead,flagged,jump" ] && [ -s "$T/fgm/crack_speed.png" ] &&
   grep -q '"branching_length_m"' "$T/fgm/summary.json" && grep -q '"secondary_branching"' "$T/fgm/summary.json" &&
   grep -q '"max_crack_speed_m_s"' "$T/fgm/summary.json" && grep -q '"branch_angles_deg"' "$T/fgm/summary.json" &&
-  "$LDEM" analyze crack "$T/fgm" | grep -q "^crack: length"; then ok; else bad "crack analysis: $(cat "$T/stderr")"; fi
+  "$LDEM" analyze crack "$T/fgm" | has "^crack: length"; then ok; else bad "crack analysis: $(cat "$T/stderr")"; fi
 "$LDEM" analyze crack "$T" >/dev/null 2>"$T/stderr"
 rc=$?
 [ $rc -eq 2 ] && grep -q "case.resolved.toml: cannot read the resolved case" "$T/stderr" && ok || bad "analyze on a non-output folder: rc $rc, $(cat "$T/stderr")"
@@ -266,7 +269,7 @@ if "$LDEM" run "$T/fatigue.toml" --out "$T/fatigue" >/dev/null 2>"$T/stderr" &&
   [ "$(head -1 "$T/fatigue/fatigue_front.csv")" = "t,N,a" ] && [ -s "$T/fatigue/fatigue_front.png" ] &&
   [ -s "$T/fatigue/fatigue_load.png" ] && [ -s "$T/fatigue/fatigue_paris.png" ] &&
   grep -q '"paris_m"' "$T/fatigue/summary.json" && grep -q '"unstable_t_over_tmax"' "$T/fatigue/summary.json" &&
-  "$LDEM" analyze fatigue "$T/fatigue" --window cycles | grep -q "no unstable failure"; then ok; else bad "fatigue analysis: $(cat "$T/stderr")"; fi
+  "$LDEM" analyze fatigue "$T/fatigue" --window cycles | has "no unstable failure"; then ok; else bad "fatigue analysis: $(cat "$T/stderr")"; fi
 "$LDEM" analyze fatigue "$T/fgm" >/dev/null 2>"$T/stderr"
 rc=$?
 [ $rc -eq 2 ] && grep -q "the fatigue analysis needs a cyclic \[\[load\]\]" "$T/stderr" && ok || bad "fatigue analysis without loads: rc $rc, $(cat "$T/stderr")"
