@@ -103,6 +103,15 @@ def main():
         fail(f"last snapshot has {n_broken_vtu} broken bars; events + pre-cracks give {expected}")
     if int((state >= 1).sum()) != len(softened | broken) + res["precracked_bars"]:
         fail("softening/broken states of the last snapshot disagree with events.csv")
+    ids = g.GetCellData().GetArray("bar")
+    if ids is not None:  # a shaped body: each cell's bar number in the body, as events.csv's
+        ids = vtk_to_numpy(ids)
+        if not (ids[1:] > ids[:-1]).all():
+            fail("the snapshot's bar numbers are not in the body's order")
+        if not broken <= set(int(b) for b in ids[state == 2]):
+            fail("bars broken in events.csv are not broken in the last snapshot (bar numbers)")
+        if g.GetPointData().GetArray("node") is None:
+            fail("a shaped body's snapshot has bar numbers but no node numbers")
     # Broken bars: those broken during the run (events.csv); pre-cracked ones apart.
     if summary["broken_bars_at_end"] != len(broken) or \
             summary["precracked_bars"] != res["precracked_bars"]:

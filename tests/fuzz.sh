@@ -11,7 +11,8 @@ trap '[ -n "${KEEP:-}" ] || rm -rf "$T"' EXIT
 # split by a newline ("[\n[x]]"), which a release build reports as malformed TOML.
 clang++ -std=c++20 -O1 -g -DNDEBUG -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
   -I"$SRC/src" "$SRC/tests/fuzz_case.cpp" "$SRC/src/io/case_parse.cpp" "$SRC/src/io/case_keys.cpp" \
-  "$SRC/src/lattice/node_set.cpp" "$SRC/src/lattice/lattice.cpp" "$SRC/src/solver/time_function.cpp" \
+  "$SRC/src/lattice/node_set.cpp" "$SRC/src/lattice/lattice.cpp" "$SRC/src/lattice/shape.cpp" \
+  "$SRC/src/solver/time_function.cpp" \
   "$SRC/src/util/text_file.cpp" \
   -lfmt -ltomlplusplus -o "$T/fuzz_case"
 mkdir -p "$T/corpus"

@@ -687,5 +687,101 @@ TEST(CaseFile, BadShapesAreRefused) {
             std::string::npos);
 }
 
+// [[geometry]]: a body cut from the box, a mask of modules from a .npy file beside the case
+// (a relative path is from the case's folder), the surface of the body as a node set, and the
+// resolved case's account of it.
+TEST(CaseFile, GeometryShapesTheBody) {
+  const std::string path = test_case_path();
+  // A 4 x 1 x 4 plate with the module (1, 0, 1) removed by a mask and the column x >= 0.03
+  // above z = 0.02 removed by a box.
+  {
+    std::string npy("\x93NUMPY\x01\x00", 8);
+    std::string header = "{'descr': '|u1', 'fortran_order': False, 'shape': (4, 1, 4), }";
+    header.append(128 - 10 - header.size() - 1, ' ');
+    header += '\n';
+    npy += static_cast<char>(header.size());
+    npy += '\0';
+    npy += header;
+    for (int i = 0; i < 4; ++i)
+      for (int k = 0; k < 4; ++k)
+        npy += static_cast<char>(i == 1 && k == 1 ? 0 : 1);
+    std::ofstream(std::filesystem::path(path).parent_path() / "plate.npy", std::ios::binary) << npy;
+  }
+  const std::string geometry = R"(
+[[geometry]]
+add = { type = "npy", file = "plate.npy" }
+
+[[geometry]]
+remove = { type = "box", min = [0.03, -1, 0.02], max = [1, 1, 1] }
+
+[[node_set]]
+name = "skin"
+shape = { type = "box", min = [-1, -1, -1], max = [1, 1, 1] }
+surface = true
+)";
+  std::ofstream(path) << kGood + geometry;
+  const BuiltCase c = build_case(path);
+  const Lattice& lat = c.sim->lattice();
+  ASSERT_TRUE(lat.shaped());
+  EXPECT_EQ(lat.num_present_modules(), 16u - 1 - 2);
+  EXPECT_FALSE(lat.module_present(1, 0, 1));
+  EXPECT_FALSE(lat.module_present(3, 0, 3));
+  // The top face's corners: x in [0, 0.03] (i = 0..3), both y: 8.
+  EXPECT_EQ(set_named(c.sets, "top").nodes.size(), 8u);
+  // Every present corner lies on the surface of a one-module-thick plate.
+  std::uint64_t corners = 0;
+  for (index_t n = 0; n < lat.num_corners(); ++n)
+    corners += lat.node_present(n);
+  EXPECT_EQ(set_named(c.sets, "skin").nodes.size(), corners);
+  const toml::table resolved = toml::parse(resolved_case_toml(c, body_numbers(*c.sim)));
+  EXPECT_EQ(resolved["geometry"][0]["add"]["type"].value_or(std::string()), "npy");
+  EXPECT_EQ(resolved["geometry"][0]["add"]["file"].value_or(std::string()), "plate.npy");
+  EXPECT_EQ(resolved["geometry"][1]["remove"]["type"].value_or(std::string()), "box");
+  EXPECT_EQ(resolved["lattice"]["modules_present"].value_or(0), 13);
+  EXPECT_EQ(resolved["resolved"]["bars"].value_or(std::int64_t{0}),
+            static_cast<std::int64_t>(lat.num_present_bars()));
+  EXPECT_DOUBLE_EQ(resolved["lattice"]["volume"].value_or(0.0), 13 * 1e-6);
+}
+
+// A geometry that keeps the whole box is the box: the lattice is not shaped, and the run is
+// the box's, byte for byte.
+TEST(CaseFile, AGeometryThatKeepsTheBoxIsTheBox) {
+  const std::string path = test_case_path();
+  std::ofstream(path) << kGood + R"(
+[[geometry]]
+remove = { type = "sphere", centre = [5, 5, 5], radius = 0.1 }
+)";
+  const BuiltCase c = build_case(path);
+  EXPECT_FALSE(c.sim->lattice().shaped());
+}
+
+// Bad geometry is refused with the key and what was expected.
+TEST(CaseFile, BadGeometryIsRefused) {
+  EXPECT_NE(error_of(kGood + "\n[[geometry]]\nadd = { type = \"sphere\", centre = [0, 0, 0], "
+                             "radius = 1 }\nremove = { type = \"sphere\", centre = [0, 0, 0], "
+                             "radius = 1 }\n")
+                .find("geometry[0].add: expected exactly one of add"),
+            std::string::npos);
+  EXPECT_NE(error_of(kGood + "\n[[geometry]]\nremove = { type = \"npy\" }\n")
+                .find("geometry[0].remove.file: missing"),
+            std::string::npos);
+  EXPECT_NE(error_of(kGood + "\n[[geometry]]\nremove = { type = \"npy\", file = \"nope.npy\" }\n")
+                .find("geometry[0].remove.file: "),
+            std::string::npos);
+  EXPECT_NE(error_of(kGood + "\n[[node_set]]\nname = \"m\"\nshape = { type = \"npy\", file = "
+                             "\"a.npy\" }\n")
+                .find("node_set[1].shape.type: expected \"box\", \"cylinder\", \"sphere\" or "
+                      "\"half_space\" (a mask of modules"),
+            std::string::npos);
+  EXPECT_NE(error_of(kGood + "\n[[node_set]]\nname = \"f\"\nface = \"x-\"\nsurface = true\n")
+                .find("node_set[1].surface: surface = true applies to a node set given by shape"),
+            std::string::npos);
+  // Removing every module leaves no body.
+  EXPECT_NE(build_error_of(kGood + "\n[[geometry]]\nremove = { type = \"box\", min = [-1, -1, "
+                                   "-1], max = [1, 1, 1] }\n")
+                .find("geometry"),
+            std::string::npos);
+}
+
 } // namespace
 } // namespace ldem

@@ -57,6 +57,15 @@ for grid in ${THICK_GRIDS:-2x1 3x1 2x2}; do
     --process-grid $py $pz >/dev/null 2>"$T/err" || bad "thick plate on $py x $pz: $(cat "$T/err")"
   compare "$T/thick-1" "$T/thick-$py$pz" "thick plate: $py x $pz processes against one"
 done
+# A shaped body across processes: the thick plate with a hole through its thickness and a
+# spherical pore cut from one face, on 2 x 2 boxes (windows hold absent modules, the snapshots
+# their present nodes and bars only).
+{ sed "s/^end = .*/end = ${HOLED_END:-0.8e-3}/" "$T/thick.toml"; printf '\n[[geometry]]\nremove = { type = "cylinder", start = [0.14, -1, 0.05], end = [0.14, 1, 0.05], radius = 0.02 }\n\n[[geometry]]\nremove = { type = "sphere", centre = [0.09, 0.02, 0.03], radius = 0.012 }\n'; } >"$T/holed.toml"
+"$LDEM" run "$T/holed.toml" --out "$T/holed-1" --no-plot --threads 1 >/dev/null 2>"$T/err" ||
+  bad "holed plate on one process: $(cat "$T/err")"
+mpi 4 run "$T/holed.toml" --out "$T/holed-22" --no-plot --threads 1 --process-grid 2 2 \
+  >/dev/null 2>"$T/err" || bad "holed plate on 2 x 2: $(cat "$T/err")"
+compare "$T/holed-1" "$T/holed-22" "holed plate: 2 x 2 processes against one"
 mpi 4 run "$T/thick.toml" --out "$T/thick-ck" --no-plot --threads 1 --process-grid 2 2 \
   --checkpoint-every 1500 >/dev/null 2>"$T/err" || bad "checkpointed 2 x 2 run: $(cat "$T/err")"
 mpi 3 resume "$T/thick-ck" --no-plot --threads 1 >/dev/null 2>"$T/err" &&

@@ -26,7 +26,7 @@ std::vector<index_t> select(const Lattice& lat, const NodeSetSpec& s) {
   case NodeSetSpec::Kind::Box:
     return select_box(lat, s.lo, s.hi);
   case NodeSetSpec::Kind::Shape:
-    return select_shape(lat, s.shape);
+    return s.surface ? select_surface(lat, s.shape) : select_shape(lat, s.shape);
   case NodeSetSpec::Kind::All:
     break;
   }
@@ -43,7 +43,7 @@ std::string how(const NodeSetSpec& s) {
     return fmt::format("box [{:g}, {:g}, {:g}] to [{:g}, {:g}, {:g}]", s.lo.x, s.lo.y, s.lo.z,
                        s.hi.x, s.hi.y, s.hi.z);
   case NodeSetSpec::Kind::Shape:
-    return s.shape.describe();
+    return (s.surface ? "the body's surface in " : "") + s.shape.describe();
   case NodeSetSpec::Kind::All:
     break;
   }
@@ -72,7 +72,7 @@ toml::table shape_table(const Shape& sh) {
   case Shape::Type::Mask:
     break;
   }
-  return toml::table{{"type", "mask"}};
+  return toml::table{{"type", "npy"}, {"file", sh.file}};
 }
 
 // A traction load's nodes weighted by the area each stands for (docs/model.md, 6); none for a
@@ -228,6 +228,24 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
   const CaseSpec& s = c.spec;
   try {
     Lattice lat(s.nx, s.ny, s.nz, s.L);
+    if (!s.geometry.empty()) {
+      const ModuleMask mask = for_entry(
+          "geometry", [&] { return build_module_mask(s.nx, s.ny, s.nz, s.L, s.geometry); });
+      c.hinged_modules = mask.hinged;
+      c.pieces = mask.pieces;
+      if (mask.hinged > 0)
+        c.warnings.push_back(fmt::format(
+            "geometry: {} modules removed: their pieces met the rest of the body only at edges "
+            "or corners, where they would turn as about hinges",
+            mask.hinged));
+      if (mask.pieces > 1)
+        c.warnings.push_back(fmt::format(
+            "geometry: the body is in {} pieces that share no node: each moves on its own",
+            mask.pieces));
+      // A mask that keeps every module is the box itself, stepped as the box.
+      if (mask.count < lat.num_modules())
+        lat.set_modules(std::make_shared<const std::vector<std::uint8_t>>(mask.present));
+    }
     for (std::size_t i = 0; i < s.node_sets.size(); ++i) {
       const NodeSetSpec& ns = s.node_sets[i];
       c.sets.push_back(for_entry(fmt::format("node_set[{}]", i),
@@ -259,6 +277,8 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       if (p.kind == ProbeSpec::Kind::BarForce) {
         double d_best = INFINITY;
         for (index_t b = 0; b < lat.num_bars(); ++b) {
+          if (!lat.bar_present(b))
+            continue;
           const Vec3 m = lat.bar_centre(b);
           const double d = (m.x - p.at.x) * (m.x - p.at.x) + (m.y - p.at.y) * (m.y - p.at.y) +
                            (m.z - p.at.z) * (m.z - p.at.z);
@@ -331,7 +351,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       const auto& [lo, hi] = *s.material.fatigue->box;
       for (index_t b = 0; b < lat.num_bars(); ++b) {
         const auto [n0, n1] = lat.bar_nodes(b);
-        if (!segment_meets_box(lat.position(n0), lat.position(n1), lo, hi))
+        if (!lat.bar_present(b) || !segment_meets_box(lat.position(n0), lat.position(n1), lo, hi))
           c.lifeless.push_back(b);
       }
       if (c.lifeless.size() == static_cast<std::size_t>(lat.num_bars()))
@@ -339,6 +359,15 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
             fmt::format("fatigue.box_min: expected a box that at least one bar meets, got "
                         "[{:g}, {:g}, {:g}] to [{:g}, {:g}, {:g}] m",
                         lo.x, lo.y, lo.z, hi.x, hi.y, hi.z));
+    }
+    if (s.material.fatigue && lat.shaped()) {
+      // The box's bars outside the body have no life to use up (their strains are those of
+      // nodes that move against nodes that stay).
+      for (index_t b = 0; b < lat.num_bars(); ++b)
+        if (!lat.bar_present(b))
+          c.lifeless.push_back(b);
+      std::sort(c.lifeless.begin(), c.lifeless.end());
+      c.lifeless.erase(std::unique(c.lifeless.begin(), c.lifeless.end()), c.lifeless.end());
     }
     if (with_simulation) {
       BarTable table(lat, s.material, fields);
@@ -394,6 +423,18 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
                            s.plane_strain_axis < 0
                                ? std::string("none")
                                : std::string(1, static_cast<char>('x' + s.plane_strain_axis))}});
+  if (!s.geometry.empty()) {
+    toml::array ops;
+    for (const ShapeOp& op : s.geometry)
+      ops.push_back(toml::table{{op.add ? "add" : "remove", shape_table(op.shape)}});
+    root.insert("geometry", ops);
+    root["lattice"].as_table()->insert("hinged_modules_removed",
+                                       static_cast<std::int64_t>(c.hinged_modules));
+    root["lattice"].as_table()->insert("pieces", static_cast<std::int64_t>(c.pieces));
+    root["lattice"].as_table()->insert("modules_present",
+                                       static_cast<std::int64_t>(lat.num_present_modules()));
+    root["lattice"].as_table()->insert("volume", lat.volume());
+  }
   toml::table mat{{"law", s.law},
                   {"E", s.material.E},
                   {"nu", s.material.nu},
@@ -626,8 +667,8 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
   // The fastest bar wave speed, as the paper's step rule takes it.
   const double c_bar = std::sqrt(body.ranges.E[1] / body.ranges.rho[0]);
   root.insert("resolved",
-              toml::table{{"nodes", static_cast<std::int64_t>(lat.num_nodes())},
-                          {"bars", static_cast<std::int64_t>(lat.num_bars())},
+              toml::table{{"nodes", static_cast<std::int64_t>(lat.num_present_nodes())},
+                          {"bars", static_cast<std::int64_t>(lat.num_present_bars())},
                           {"steps", static_cast<std::int64_t>(std::ceil(s.end_time / body.dt))},
                           {"dt", body.dt},
                           {"dt_over_L_c", body.dt * c_bar / s.L},

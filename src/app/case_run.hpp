@@ -28,6 +28,8 @@ struct BuiltCase {
   std::vector<CutResult> cuts;
   std::vector<index_t> probe_bars; // per probe: the bar of a bar_force probe
   std::vector<std::string> warnings;
+  // [[geometry]]: modules removed as hinged pieces, and the pieces of the body.
+  std::uint64_t hinged_modules = 0, pieces = 1;
   // What the simulation was built from, for runs that build it again in subdomains: the body's
   // lattice, its conditions and the solver options (the material fields are evaluated again
   // per subdomain, from spec).
@@ -88,8 +90,7 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
 // The pictures of an output folder (tools/plot/ldem_plot.py); `view` ("xz", ...) and `cut`
 // ("y=0.015") choose crack.png's projection or slice (empty: the default for the body).
 // 0: done; 1: no matplotlib; 2: a bad view or slice (the script says which).
-int plot_command(const std::string& dir, const std::string& view = "",
-                 const std::string& cut = "");
+int plot_command(const std::string& dir, const std::string& view = "", const std::string& cut = "");
 // Prints the `count` lowest eigenfrequencies of the case's lattice (solver/modes.hpp) as a table,
 // with the time step and any periodic load frequency compared to the lowest. No files.
 int modes_command(const std::string& path, int count, int threads);

@@ -39,7 +39,7 @@ int check_command(const std::string& path) {
     fmt::print(stderr, "ldem: warning: {}\n", *w);
   fmt::print("{}", resolved_case_toml(c, body_numbers(*c.sim)));
   fmt::print(stderr, "{}: valid ({} nodes, {} bars, dt = {:.4g} s of a stable {:.4g} s)\n", path,
-             c.sim->lattice().num_nodes(), c.sim->lattice().num_bars(), c.sim->dt(),
+             c.sim->lattice().num_present_nodes(), c.sim->lattice().num_present_bars(), c.sim->dt(),
              c.sim->stable_step().dt);
   return 0;
 }
@@ -252,8 +252,11 @@ int run_command(const std::string& path, const RunOptions& o) {
       if (e.path().extension() == ".vtu" && e.path().filename().string().rfind("lattice_", 0) == 0)
         fs::remove(e.path());
     fs::remove_all(o.out_dir + "/checkpoint", ec);
+    fs::remove(o.out_dir + "/body.npy", ec); // an earlier shaped body's
     const std::string resolved = resolved_case_toml(c, body->numbers());
     write_file(dir + "case.resolved.toml", resolved);
+    if (c.lattice->shaped())
+      write_file(dir + "body.npy", module_mask_npy(*c.lattice));
     st.resolved_hash = checkpoint::fnv1a(resolved.data(), resolved.size());
     const std::string text = read_all(path);
     st.case_hash = checkpoint::fnv1a(text.data(), text.size());
@@ -332,8 +335,10 @@ int plot_command(const std::string& dir, const std::string& view, const std::str
   // The options go to the script as single-quoted words: refuse a quote in them.
   for (const std::string* o : {&view, &cut})
     if (o->find('\'') != std::string::npos) {
-      fmt::print(stderr, "ldem plot: --view/--slice: expected letters, digits, '=' and '.'; got "
-                         "'{}'\n", *o);
+      fmt::print(stderr,
+                 "ldem plot: --view/--slice: expected letters, digits, '=' and '.'; got "
+                 "'{}'\n",
+                 *o);
       return 2;
     }
   std::string cmd = fmt::format("/usr/bin/python3 '{}'", LDEM_PLOT_SCRIPT);

@@ -367,14 +367,11 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       probe_row();
       flush_events();
       const EnergyReport& r = body.last_report();
-      energy->write(fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}{:.6g}{}\n", r.time,
-                                r.external_work, r.elastic, r.kinetic, r.damage_dissipated,
-                                r.damping_dissipated,
-                                fatigue_column ? fmt::format("{:.9g},", r.fatigue_dissipated)
-                                               : std::string(),
-                                r.balance_error,
-                                jumping ? fmt::format(",{:.17g}", st.jumped_cycles)
-                                        : std::string()));
+      energy->write(fmt::format(
+          "{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}{:.6g}{}\n", r.time, r.external_work,
+          r.elastic, r.kinetic, r.damage_dissipated, r.damping_dissipated,
+          fatigue_column ? fmt::format("{:.9g},", r.fatigue_dissipated) : std::string(),
+          r.balance_error, jumping ? fmt::format(",{:.17g}", st.jumped_cycles) : std::string()));
       if (r.external_work + r.initial >
               1e-6 * (r.elastic + r.kinetic + r.damage_dissipated + r.fatigue_dissipated) &&
           n > 0)
@@ -431,30 +428,30 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   const ProcessGrid grid = body.grid();
   write_file(
       dir + "summary.json",
-      fmt::format("{{\n  \"case\": \"{}\",\n  \"title\": \"{}\",\n  \"nodes\": {},\n"
-                  "  \"bars\": {},\n  \"steps\": {},\n  \"dt\": {:.9g},\n"
-                  "  \"dt_stable\": {:.9g},\n  \"end_time\": {:.9g},\n  \"wall_s\": {:.4f},\n"
-                  "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n  \"processes\": {},\n"
-                  "  \"process_grid\": [1, {}, {}],\n  \"bytes_per_module\": {:.1f},\n"
-                  "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
-                  "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
-                  "  \"interrupted\": {},\n  \"stopped_by\": {},\n{}  \"analysis\": {{}}\n}}\n",
-                  st.case_path, s.title, lat.num_nodes(), lat.num_bars(), simulated, body.dt(),
-                  body.stable_step().dt, static_cast<double>(simulated) * body.dt(), wall,
-                  static_cast<double>(lat.num_bars()) * static_cast<double>(done) / wall,
-                  omp_get_max_threads(), process_count(), grid.py, grid.pz,
-                  body.numbers().bytes_per_module, st.max_balance, softened,
-                  broken - c.precracked.size(), c.precracked.size(), signal ? "true" : "false",
-                  stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\"",
-                  jumping ? fmt::format("  \"jumped_cycles\": {:.17g},\n"
-                                        "  \"cycles_at_constant_amplitude\": {:.17g},\n",
-                                        st.jumped_cycles,
-                                        st.jumped_cycles +
-                                            c.cycle->frequency *
-                                                std::max(0.0, static_cast<double>(simulated) *
-                                                                      body.dt() -
-                                                                  c.cycle->t_constant))
-                          : std::string()));
+      fmt::format(
+          "{{\n  \"case\": \"{}\",\n  \"title\": \"{}\",\n  \"nodes\": {},\n"
+          "  \"bars\": {},\n  \"steps\": {},\n  \"dt\": {:.9g},\n"
+          "  \"dt_stable\": {:.9g},\n  \"end_time\": {:.9g},\n  \"wall_s\": {:.4f},\n"
+          "  \"bar_updates_per_s\": {:.6g},\n  \"threads\": {},\n  \"processes\": {},\n"
+          "  \"process_grid\": [1, {}, {}],\n  \"bytes_per_module\": {:.1f},\n"
+          "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
+          "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
+          "  \"interrupted\": {},\n  \"stopped_by\": {},\n{}  \"analysis\": {{}}\n}}\n",
+          st.case_path, s.title, lat.num_present_nodes(), lat.num_present_bars(), simulated,
+          body.dt(), body.stable_step().dt, static_cast<double>(simulated) * body.dt(), wall,
+          static_cast<double>(lat.num_present_bars()) * static_cast<double>(done) / wall,
+          omp_get_max_threads(), process_count(), grid.py, grid.pz, body.numbers().bytes_per_module,
+          st.max_balance, softened, broken - c.precracked.size(), c.precracked.size(),
+          signal ? "true" : "false",
+          stopped_by.empty() ? std::string("null") : "\"" + stopped_by + "\"",
+          jumping ? fmt::format("  \"jumped_cycles\": {:.17g},\n"
+                                "  \"cycles_at_constant_amplitude\": {:.17g},\n",
+                                st.jumped_cycles,
+                                st.jumped_cycles +
+                                    c.cycle->frequency *
+                                        std::max(0.0, static_cast<double>(simulated) * body.dt() -
+                                                          c.cycle->t_constant))
+                  : std::string()));
   if (!blow_up.empty()) {
     fmt::print(stderr, "ldem: error: {}\n", blow_up);
     return 3;

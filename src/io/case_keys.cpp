@@ -71,6 +71,8 @@ const std::vector<KeyDecl>& case_keys() {
     {"field", "correlation_length", "float", "0", "m", 0, kInf, false, false, "", "weibull: 0 draws each bar independently (correlation of the order of L); a length > 0 makes a Gaussian field with that correlation length, independent of L, mapped to the Weibull marginal."},
     {"field", "covariance", "string", "\"exponential\"", "", -kInf, kInf, false, false, "\"exponential\", \"squared_exponential\"", "weibull with correlation_length > 0: exp(-r / l) or exp(-(r / l)^2)."},
 
+    {"geometry", "add", "table", "-", "", -kInf, kInf, false, false, "", "Add the modules whose centres lie inside this shape (see the shape keys below; boundaries included, to within 1e-9 L). When the first [[geometry]] adds, the body starts empty, else from the full box; the tables apply in order."},
+    {"geometry", "remove", "table", "-", "", -kInf, kInf, false, false, "", "Remove the modules whose centres lie inside this shape: a hole, a notch with thickness. Pieces joined to the rest only by edges or corners are removed too, with a warning that counts them."},
     {"node_set", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name used by conditions, loads and probes."},
     {"node_set", "face", "string", "-", "", -kInf, kInf, false, false, "\"x-\", \"x+\", \"y-\", \"y+\", \"z-\", \"z+\"", "The corner nodes on this face of the box."},
     {"node_set", "face_centres", "string", "-", "", -kInf, kInf, false, false, "\"x-\", \"x+\", \"y-\", \"y+\", \"z-\", \"z+\"", "The centre nodes of the layer of modules along this face."},
@@ -78,8 +80,9 @@ const std::vector<KeyDecl>& case_keys() {
     {"node_set", "box_max", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "See box_min."},
     {"node_set", "all", "bool", "false", "", -kInf, kInf, false, false, "", "Every node."},
     {"node_set", "shape", "table", "-", "", -kInf, kInf, false, false, "", "Every node inside this shape (`shape = { type = \"sphere\", centre = [...], radius = ... }`; boundaries included, to within 1e-9 L; see the shape keys below): a loading pad, a support, a gauge's region."},
+    {"node_set", "surface", "bool", "false", "", -kInf, kInf, false, false, "", "With shape: only the corner nodes of the body's surface inside the shape (those with fewer than 8 present modules around them): a loading strip on a disc, the curved face of a cylinder."},
 
-    {"shape", "type", "string", "required", "", -kInf, kInf, false, false, "\"box\", \"cylinder\", \"sphere\", \"half_space\"", "The kind of solid; only its own keys apply."},
+    {"shape", "type", "string", "required", "", -kInf, kInf, false, false, "\"box\", \"cylinder\", \"sphere\", \"half_space\", \"npy\"", "The kind of solid; only its own keys apply. \"npy\" (in [[geometry]] only): the modules a NumPy file marks."},
     {"shape", "min", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "box: the corner with the smallest coordinates (before a turn)."},
     {"shape", "max", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "box: the opposite corner; at or above min on every axis."},
     {"shape", "axis", "string", "-", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "box, with angle: the box is turned about the axis along this direction through its centre."},
@@ -90,6 +93,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"shape", "centre", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "sphere: the centre."},
     {"shape", "point", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "half_space: a point on its boundary plane."},
     {"shape", "normal", "[3 floats]", "-", "", -kInf, kInf, false, false, "", "half_space: a vector out of the plane towards the inside (not zero): the points x with (x - point) . normal >= 0."},
+    {"shape", "file", "string", "-", "", -kInf, kInf, false, false, "", "npy: a NumPy .npy array of shape (nx, ny, nz), indexed [i, j, k] (C or Fortran order), of booleans, integers or floats: the modules where it is not zero; a relative path is from the case file's folder."},
 
     {"fixed", "set", "string", "required", "", -kInf, kInf, false, false, "", "Node set whose DOF are held at zero displacement."},
     {"fixed", "dofs", "string", "\"xyz\"", "", -kInf, kInf, false, false, "letters x, y, z", "Which DOF."},
@@ -173,7 +177,8 @@ std::string case_format_markdown() {
       "Tables: `[case]`, `[lattice]`, `[material]`, `[fatigue]` (with `law =\n"
       "\"bilinear_fatigue\"` only), `[time]`, `[output]`, `[analysis]`; arrays\n"
       "of tables:\n"
-      "`[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`, `[[precrack]]`, `[[probe]]`;\n"
+      "`[[geometry]]`, `[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`, `[[precrack]]`,\n"
+      "`[[probe]]`;\n"
       "a velocity or load may carry `function = [{ type = ..., ... }, ...]`, whose terms are\n"
       "summed; a node set may be a shape, `shape = { type = ..., ... }`. Coordinates are in\n"
       "metres from the box's corner at the origin; the box spans\n"
@@ -182,8 +187,8 @@ std::string case_format_markdown() {
   for (const KeyDecl& k : case_keys()) {
     if (std::string(k.table) != last) {
       const std::string t = k.table;
-      const bool array = t == "node_set" || t == "fixed" || t == "velocity" || t == "load" ||
-                         t == "precrack" || t == "probe";
+      const bool array = t == "geometry" || t == "node_set" || t == "fixed" || t == "velocity" ||
+                         t == "load" || t == "precrack" || t == "probe";
       md += fmt::format("\n## {}\n\n| key | type | default | unit | allowed | meaning |\n"
                         "|---|---|---|---|---|---|\n",
                         t == "field"      ? "material fields (`E = { type = ... }`)"

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fmt/format.h>
 #include <fstream>
 #include <map>
@@ -51,7 +52,8 @@ std::vector<std::string> split_choices(const std::string& choices) {
 }
 
 const char* kTopTables[] = {"case", "lattice", "material", "fatigue", "time", "output", "analysis"};
-const char* kArrayTables[] = {"node_set", "fixed", "velocity", "load", "precrack", "probe"};
+const char* kArrayTables[] = {"geometry", "node_set", "fixed", "velocity",
+                              "load",     "precrack", "probe"};
 
 class Reader {
 public:
@@ -399,13 +401,21 @@ public:
   }
 
   // A shape (`key = { type = "box", ... }` in table t); `where` names the table ("node_set[0].").
-  Shape shape(const toml::table& t, const char* key, const std::string& where) const {
+  // With `grid` (the lattice's modules and the case file's folder), also a mask of modules read
+  // from a NumPy file (`type = "npy"`).
+  struct MaskGrid {
+    index_t nx, ny, nz;
+    std::filesystem::path folder;
+  };
+  Shape shape(const toml::table& t, const char* key, const std::string& where,
+              const MaskGrid* grid = nullptr) const {
     const toml::node* n = t.get(key);
     const std::string name = where + key;
     if (!n || !n->is_table())
       fail(n ? n : &t, name,
-           fmt::format("expected a shape, {{ type = \"box\", \"cylinder\", \"sphere\" or "
-                       "\"half_space\", ... }}, got {}",
+           fmt::format("expected a shape, {{ type = \"box\", \"cylinder\", \"sphere\"{}, "
+                       "... }}, got {}",
+                       grid ? ", \"half_space\" or \"npy\"" : " or \"half_space\"",
                        n ? describe(*n) : "none"));
     const toml::table& st = *n->as_table();
     const std::string w = name + ".";
@@ -453,6 +463,26 @@ public:
       if (out.a.x == out.b.x && out.a.y == out.b.y && out.a.z == out.b.z)
         fail(st.get("end"), w + "end",
              "expected an end apart from start (the axis), got the same point");
+    } else if (type == "npy") {
+      if (!grid)
+        fail(st.get("type"), w + "type",
+             "expected \"box\", \"cylinder\", \"sphere\" or \"half_space\" (a mask of "
+             "modules, \"npy\", shapes the body only: [[geometry]]), got \"npy\"");
+      only(st, w, what, {"type", "file"});
+      out.type = Shape::Type::Mask;
+      const auto file = opt_string(st, "shape", "file", w);
+      if (!file)
+        fail(&st, w + "file", fmt::format("missing: {} needs file", what));
+      std::filesystem::path p(*file);
+      if (p.is_relative())
+        p = grid->folder / p;
+      try {
+        out.mask = std::make_shared<const std::vector<std::uint8_t>>(
+            read_npy_mask(p.string(), grid->nx, grid->ny, grid->nz));
+      } catch (const InputError& e) {
+        fail(st.get("file"), w + "file", e.what());
+      }
+      out.file = *file;
     } else if (type == "sphere") {
       only(st, w, what, {"type", "centre", "radius"});
       out.type = Shape::Type::Sphere;
@@ -718,6 +748,24 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     r.fail(&mat, "material.e_p",
            c.material.e_p ? "expected e_p or R_f, not both" : "missing: give e_p or R_f");
 
+  {
+    // The body's modules: [[geometry]] add or remove, in order.
+    const auto ops = array("geometry");
+    const Reader::MaskGrid grid{c.nx, c.ny, c.nz, std::filesystem::path(name).parent_path()};
+    for (std::size_t i = 0; i < ops.size(); ++i) {
+      const toml::table& t = *ops[i];
+      const std::string w = fmt::format("geometry[{}].", i);
+      r.check_known(t, "geometry", w);
+      if (r.has(t, "add") == r.has(t, "remove"))
+        r.fail(&t, w + "add",
+               "expected exactly one of add = { type = ... } or remove = { type = ... }");
+      ShapeOp op;
+      op.add = r.has(t, "add");
+      op.shape = r.shape(t, op.add ? "add" : "remove", w, &grid);
+      c.geometry.push_back(std::move(op));
+    }
+  }
+
   std::vector<std::string> set_names;
   const auto sets = array("node_set");
   for (std::size_t i = 0; i < sets.size(); ++i) {
@@ -744,6 +792,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     } else if (r.has(t, "shape")) {
       s.kind = NodeSetSpec::Kind::Shape;
       s.shape = r.shape(t, "shape", w);
+      s.surface = r.get_bool(t, "node_set", "surface", w);
     } else if (r.has(t, "box_min")) {
       s.kind = NodeSetSpec::Kind::Box;
       s.lo = *r.opt_vec3(t, "node_set", "box_min", w);
@@ -752,6 +801,9 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
         r.fail(&t, w + "box_max", "missing: box_min needs box_max");
       s.hi = *hi;
     }
+    if (s.kind != NodeSetSpec::Kind::Shape && r.get_bool(t, "node_set", "surface", w))
+      r.fail(t.get("surface"), w + "surface",
+             "surface = true applies to a node set given by shape (the body's surface inside it)");
     set_names.push_back(s.name);
     c.node_sets.push_back(s);
   }

@@ -24,7 +24,8 @@ struct NodeSetSpec {
   enum class Kind { Face, FaceCentres, Box, Shape, All } kind = Kind::All;
   Face face = Face::XMin;
   Vec3 lo, hi;
-  ldem::Shape shape; // Kind::Shape: every node inside it
+  ldem::Shape shape;    // Kind::Shape: every node inside it,
+  bool surface = false; // or only the corner nodes of the body's surface inside it
 };
 
 struct FixedSpec {
@@ -98,6 +99,8 @@ struct CaseSpec {
   index_t nx = 0, ny = 0, nz = 0;
   double L = 0.0;
   int plane_strain_axis = -1;
+  // The body's modules: the box, changed by these operations in order ([[geometry]]).
+  std::vector<ShapeOp> geometry;
   MaterialSpec material;
   std::string law = "bilinear"; // the bar law (solver/laws.cpp)
   // Properties given as fields (the MaterialSpec then holds a representative value).

@@ -1,7 +1,6 @@
 #include "io/output.hpp"
 
 #include "io/checkpoint.hpp"
-
 #include "util/error.hpp"
 
 #include <algorithm>
@@ -157,7 +156,38 @@ std::vector<float> to_float(const std::vector<double>& v) {
 
 } // namespace
 
-VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim) {
+std::string module_mask_npy(const Lattice& lat) {
+  std::string header =
+      fmt::format("{{'descr': '|u1', 'fortran_order': True, 'shape': ({}, {}, {}), }}", lat.nx(),
+                  lat.ny(), lat.nz());
+  // Magic, version 1.0, the header's length, the header padded with spaces to a multiple of 64
+  // bytes in all, ending in a newline (the .npy format, version 1.0).
+  const std::size_t total = (10 + header.size() + 1 + 63) / 64 * 64;
+  header.append(total - 10 - header.size() - 1, ' ');
+  header += '\n';
+  std::string out("\x93NUMPY\x01\x00", 8);
+  out += static_cast<char>(header.size() & 0xff);
+  out += static_cast<char>(header.size() >> 8);
+  out += header;
+  for (index_t k = 0; k < lat.nz(); ++k)
+    for (index_t j = 0; j < lat.ny(); ++j)
+      for (index_t i = 0; i < lat.nx(); ++i)
+        out += static_cast<char>(lat.module_present(i, j, k) ? 1 : 0);
+  return out;
+}
+
+PresentRanks::PresentRanks(const Lattice& lat) {
+  if (!lat.shaped())
+    return;
+  node.resize(std::size_t{lat.num_nodes()} + 1);
+  for (index_t n = 0; n < lat.num_nodes(); ++n)
+    node[n + 1] = node[n] + lat.node_present(n);
+  bar.resize(std::size_t{lat.num_bars()} + 1);
+  for (index_t b = 0; b < lat.num_bars(); ++b)
+    bar[b + 1] = bar[b] + lat.bar_present(b);
+}
+
+VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids) {
   const bool fields = sim.table().per_bar();
   VtuLayout l;
   std::string s = "<?xml version=\"1.0\"?>\n"
@@ -179,10 +209,14 @@ VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim) {
   s += "<PointData Vectors=\"displacement\">\n";
   tag(VtuLayout::Displacement, "Float32", "displacement", 3, 3 * fn);
   tag(VtuLayout::Velocity, "Float32", "velocity", 3, 3 * fn);
+  if (ids)
+    tag(VtuLayout::NodeId, "Int32", "node", 1, fn);
   s += "</PointData>\n<CellData Scalars=\"damage\">\n";
   tag(VtuLayout::Damage, "Float32", "damage", 1, fb);
   tag(VtuLayout::State, "UInt8", "state", 1, nb);
   tag(VtuLayout::Force, "Float32", "axial_force", 1, fb);
+  if (ids)
+    tag(VtuLayout::BarId, "Int32", "bar", 1, fb);
   const std::span<const StateArray> states = sim.bar_state_arrays();
   for (std::size_t a = 0; a < states.size(); ++a)
     if (states[a].in_snapshots) {
@@ -216,11 +250,40 @@ VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim) {
   return l;
 }
 
-LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
+namespace {
+
+// Keeps the items of `v` (`width` values each) that `ranks` marks present, in order, at the
+// front of v, and drops the rest. Nothing for a box (empty ranks).
+template <class T>
+void keep_present(std::vector<T>& v, const std::vector<index_t>& ranks, std::size_t width) {
+  if (ranks.empty())
+    return;
+  const std::size_t n = ranks.size() - 1;
+  for (std::size_t x = 0; x < n; ++x)
+    if (ranks[x + 1] > ranks[x])
+      std::copy_n(v.begin() + static_cast<std::ptrdiff_t>(width * x), width,
+                  v.begin() + static_cast<std::ptrdiff_t>(width * ranks[x]));
+  v.resize(width * ranks[n]);
+}
+
+} // namespace
+
+LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) : ranks_(sim.lattice()) {
   const Lattice& lat = sim.lattice();
   const index_t nn = lat.num_nodes(), nb = lat.num_bars();
   nn_ = nn;
   nb_ = nb;
+  if (ranks_.shaped()) {
+    for (index_t n = 0; n < nn; ++n)
+      if (ranks_.node[n + 1] > ranks_.node[n])
+        node_id_.push_back(static_cast<std::int32_t>(n));
+    for (index_t b = 0; b < nb; ++b)
+      if (ranks_.bar[b + 1] > ranks_.bar[b])
+        bar_id_.push_back(static_cast<std::int32_t>(b));
+  }
+  // What the file holds: the present nodes and bars (a shaped body's), or all.
+  const auto wn = static_cast<index_t>(ranks_.shaped() ? node_id_.size() : nn);
+  const auto wb = static_cast<index_t>(ranks_.shaped() ? bar_id_.size() : nb);
   // What does not change during a run: reference positions, connectivity, cell types and the
   // material fields, appended after the per-snapshot arrays in one block.
   std::vector<float> points(3 * std::size_t{nn});
@@ -231,19 +294,24 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
     points[3 * std::size_t{n} + 2] = static_cast<float>(x.z);
   }
   std::vector<std::int32_t> conn(2 * std::size_t{nb}), offsets(nb);
-  const std::vector<std::uint8_t> types(nb, 3); // 3 = VTK_LINE
+  std::vector<std::uint8_t> types(nb, 3); // 3 = VTK_LINE
   for (int f = 0; f < kFamilies; ++f) {
     const FamilyInfo& fi = lat.family(f);
     for (index_t k = 0; k < fi.nk; ++k)
       for (index_t j = 0; j < fi.nj; ++j)
         for (index_t i = 0; i < fi.ni; ++i) {
           const std::size_t b = lat.bar(static_cast<Family>(f), i, j, k);
-          conn[2 * b] = static_cast<std::int32_t>(fi.a.at(i, j, k));
-          conn[2 * b + 1] = static_cast<std::int32_t>(fi.b.at(i, j, k));
+          const index_t a = fi.a.at(i, j, k), c = fi.b.at(i, j, k);
+          conn[2 * b] = static_cast<std::int32_t>(ranks_.shaped() ? ranks_.node[a] : a);
+          conn[2 * b + 1] = static_cast<std::int32_t>(ranks_.shaped() ? ranks_.node[c] : c);
         }
   }
   for (index_t b = 0; b < nb; ++b)
     offsets[b] = static_cast<std::int32_t>(2 * (std::int64_t{b} + 1));
+  keep_present(points, ranks_.node, 3);
+  keep_present(conn, ranks_.bar, 2);
+  offsets.resize(wb);
+  types.resize(wb);
 
   // The per-snapshot arrays come first in the appended data; their sizes are fixed, so every
   // offset, and the whole XML header, is known now.
@@ -253,8 +321,8 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
     const auto* q = static_cast<const char*>(data);
     static_block_.insert(static_block_.end(), q, q + bytes);
   };
-  const std::uint64_t fb = 4ull * nb;
-  const VtuLayout layout = vtu_layout(nn, nb, sim);
+  const std::uint64_t fb = 4ull * wb;
+  const VtuLayout layout = vtu_layout(wn, wb, sim, ranks_.shaped());
   law_states_ = layout.states;
   if (sim.table().per_bar()) {
     // The material fields per bar: E, Gf (its fracture energy per fracture area, eq. 11),
@@ -265,17 +333,18 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) {
       E[b] = static_cast<float>(p.E);
       Gf[b] = static_cast<float>(p.Gf);
     }
-    const std::vector<float> e_p = to_float(sim.table().e_p_bar()),
-                             e_r = to_float(sim.table().e_r_bar());
+    std::vector<float> e_p = to_float(sim.table().e_p_bar()), e_r = to_float(sim.table().e_r_bar());
+    for (std::vector<float>* v : {&E, &Gf, &e_p, &e_r})
+      keep_present(*v, ranks_.bar, 1);
     add_static(E.data(), fb);
     add_static(Gf.data(), fb);
     add_static(e_p.data(), fb);
     add_static(e_r.data(), fb);
   }
-  add_static(points.data(), 3 * 4ull * nn);
+  add_static(points.data(), 3 * 4ull * wn);
   add_static(conn.data(), 2 * fb);
   add_static(offsets.data(), fb);
-  add_static(types.data(), nb);
+  add_static(types.data(), wb);
   header_ = layout.header;
   // Every buffer a snapshot fills, sized (and its pages touched) now, not at the first snapshot.
   disp_.resize(3 * std::size_t{nn});
@@ -317,21 +386,42 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
         static_cast<float>(damage_[static_cast<std::size_t>(b)]);
     force_f_[static_cast<std::size_t>(b)] = static_cast<float>(force_[static_cast<std::size_t>(b)]);
   }
+  // A shaped body's file holds its present nodes and bars only (the buffers keep the body's
+  // size, so the next snapshot fills them whole again).
+  const bool shaped = ranks_.shaped();
+  const index_t wn = shaped ? ranks_.node.back() : nn_, wb = shaped ? ranks_.bar.back() : nb_;
+  if (shaped) {
+    for (std::vector<float>* v : {&disp_, &vel_}) {
+      keep_present(*v, ranks_.node, 3);
+      v->resize(3 * std::size_t{nn_});
+    }
+    for (std::vector<float>* v : {&damage_f_, &force_f_}) {
+      keep_present(*v, ranks_.bar, 1);
+      v->resize(nb_);
+    }
+    keep_present(state_, ranks_.bar, 1);
+    state_.resize(nb_);
+  }
   OutputFile out(path);
   out.write(header_);
   auto block = [&](const void* data, std::uint64_t bytes) {
     out.write(reinterpret_cast<const char*>(&bytes), sizeof bytes);
     out.write(static_cast<const char*>(data), bytes);
   };
-  block(disp_.data(), disp_.size() * sizeof(float));
-  block(vel_.data(), vel_.size() * sizeof(float));
-  block(damage_f_.data(), damage_f_.size() * sizeof(float));
-  block(state_.data(), state_.size());
-  block(force_f_.data(), force_f_.size() * sizeof(float));
+  block(disp_.data(), 3 * std::size_t{wn} * sizeof(float));
+  block(vel_.data(), 3 * std::size_t{wn} * sizeof(float));
+  if (shaped)
+    block(node_id_.data(), node_id_.size() * sizeof(std::int32_t));
+  block(damage_f_.data(), std::size_t{wb} * sizeof(float));
+  block(state_.data(), wb);
+  block(force_f_.data(), std::size_t{wb} * sizeof(float));
+  if (shaped)
+    block(bar_id_.data(), bar_id_.size() * sizeof(std::int32_t));
   for (std::size_t a : law_states_) {
     law_state_.clear();
     sim.append_bar_states(a, 0, nb_, law_state_);
     law_state_f_.assign(law_state_.begin(), law_state_.end());
+    keep_present(law_state_f_, ranks_.bar, 1);
     block(law_state_f_.data(), law_state_f_.size() * sizeof(float));
   }
   out.write(static_block_.data(), static_block_.size());

@@ -46,8 +46,8 @@ private:
   std::FILE* f_ = nullptr;
   std::uint64_t size_ = 0;
   std::uint64_t hash_ = 0;
-  std::uint64_t flushed_ = 0;        // bytes known to be on disk (the last successful flush)
-  std::vector<std::uint64_t> ends_;  // where the writes since then end
+  std::uint64_t flushed_ = 0;       // bytes known to be on disk (the last successful flush)
+  std::vector<std::uint64_t> ends_; // where the writes since then end
 };
 
 // Writes a whole file at once (temporary name, then rename).
@@ -85,6 +85,8 @@ struct VtuLayout {
     Connectivity, // Int32 x 2 per bar
     Offsets,      // Int32 per bar
     Types,        // UInt8 per bar
+    NodeId,       // Int32 per node: its number in the body (a shaped body's snapshots only)
+    BarId,        // Int32 per bar: likewise
     kArrays
   };
   std::string header;
@@ -106,9 +108,24 @@ struct VtuLayout {
     return state_at[s] + sizeof(std::uint64_t) + index * sizeof(float);
   }
 };
-// The layout of a snapshot of `sim`'s body (`nodes` and `bars`: the whole body's): the fields
-// where its material varies, the law's state arrays it carries.
-VtuLayout vtu_layout(index_t nodes, index_t bars, const Simulation& sim);
+// The layout of a snapshot of `sim`'s body (`nodes` and `bars`: the whole body's present ones):
+// the fields where its material varies, the law's state arrays it carries, and with `ids` (a
+// shaped body) each node's and bar's number in the body.
+VtuLayout vtu_layout(index_t nodes, index_t bars, const Simulation& sim, bool ids = false);
+
+// A shaped body's modules as a NumPy .npy file (body.npy of a run folder): uint8, shape
+// (nx, ny, nz), indexed [i, j, k], 1 where the module is present (Fortran order: i fastest, the
+// lattice's own). `ldem` reads it back as a [[geometry]] mask.
+std::string module_mask_npy(const Lattice& lattice);
+
+// Where a shaped body's present nodes and bars lie in its snapshots, which hold only them, in
+// the body's order: node n at node[n] (the present nodes before it), likewise bars; one entry
+// more than the items, so that node[n + 1] > node[n] says that n is present. Empty for a box.
+struct PresentRanks {
+  std::vector<index_t> node, bar;
+  explicit PresentRanks(const Lattice& lattice);
+  bool shaped() const { return !node.empty(); }
+};
 
 // The same for a series of snapshots of one run: what does not change (reference positions,
 // connectivity, material fields, the XML header with every offset) is prepared once, so a
@@ -119,7 +136,9 @@ public:
   void write(const Simulation& sim, const std::string& path);
 
 private:
-  index_t nn_ = 0, nb_ = 0;
+  index_t nn_ = 0, nb_ = 0; // the body's nodes and bars
+  PresentRanks ranks_;      // of a shaped body, whose snapshots hold its present ones only
+  std::vector<std::int32_t> node_id_, bar_id_;
   std::string header_;
   std::vector<char> static_block_;
   std::vector<float> disp_, vel_, damage_f_, force_f_;

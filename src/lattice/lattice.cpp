@@ -98,8 +98,51 @@ Vec3 Lattice::position(index_t node) const {
   return {(n.i + s) * L_, (n.j + s) * L_, (n.k + s) * L_};
 }
 
+int Lattice::present_in(index_t i0, index_t i1, index_t j0, index_t j1, index_t k0,
+                        index_t k1) const {
+  int n = 0;
+  for (index_t k = k0; k != k1 + 1; ++k)
+    for (index_t j = j0; j != j1 + 1; ++j)
+      for (index_t i = i0; i != i1 + 1; ++i)
+        n += i < nx_ && j < ny_ && k < nz_ && module_present(i, j, k);
+  return n;
+}
+
 int Lattice::modules_at_corner(index_t i, index_t j, index_t k) const {
+  if (present_)
+    return present_in(i - 1, i, j - 1, j, k - 1, k);
   return layers_sharing(i, nx_) * layers_sharing(j, ny_) * layers_sharing(k, nz_);
+}
+
+bool Lattice::node_present(index_t node) const {
+  if (!present_)
+    return true;
+  const NodeAddress a = node_address(node);
+  return a.centre ? module_present(a.i, a.j, a.k) : modules_at_corner(a.i, a.j, a.k) > 0;
+}
+
+void Lattice::set_modules(std::shared_ptr<const std::vector<std::uint8_t>> present) {
+  present_ = nullptr;
+  present_count_ = {};
+  if (!present)
+    return;
+  if (present->size() != num_modules())
+    throw InputError(fmt::format("lattice: expected a mask of {} x {} x {} = {} modules, got {}",
+                                 nx_, ny_, nz_, num_modules(), present->size()));
+  present_ = std::move(present);
+  std::uint64_t modules = 0, nodes = 0, bars = 0;
+  for (std::uint8_t p : *present_)
+    modules += p != 0;
+  for (index_t n = 0; n < num_nodes(); ++n)
+    nodes += node_present(n);
+  for (int f = 0; f < kFamilies; ++f) {
+    const FamilyInfo& fi = families_[f];
+    for (index_t k = 0; k < fi.nk; ++k)
+      for (index_t j = 0; j < fi.nj; ++j)
+        for (index_t i = 0; i < fi.ni; ++i)
+          bars += area_factor(static_cast<Family>(f), i, j, k) > 0.0;
+  }
+  present_count_ = {modules, nodes, bars};
 }
 
 BarAddress Lattice::bar_address(index_t bar) const {
@@ -146,6 +189,25 @@ Vec3 Lattice::bar_centre(index_t bar) const {
 double Lattice::area_factor(Family f, index_t i, index_t j, index_t k) const {
   // An edge bar is shared by up to 4 modules; on the faces and edges of the box its area
   // is scaled by (modules sharing it) / 4 so that every module holds the same stiffness.
+  // In a shaped body only the present modules count, so a re-entrant edge (3 modules) has 3/4.
+  if (present_) {
+    switch (f) {
+    case Family::EdgeX:
+      return 0.25 * present_in(i, i, j - 1, j, k - 1, k);
+    case Family::EdgeY:
+      return 0.25 * present_in(i - 1, i, j, j, k - 1, k);
+    case Family::EdgeZ:
+      return 0.25 * present_in(i - 1, i, j - 1, j, k, k);
+    case Family::CentreX:
+      return module_present(i, j, k) && module_present(i + 1, j, k) ? 1.0 : 0.0;
+    case Family::CentreY:
+      return module_present(i, j, k) && module_present(i, j + 1, k) ? 1.0 : 0.0;
+    case Family::CentreZ:
+      return module_present(i, j, k) && module_present(i, j, k + 1) ? 1.0 : 0.0;
+    default:
+      return module_present(i, j, k) ? 1.0 : 0.0;
+    }
+  }
   switch (f) {
   case Family::EdgeX:
     return 0.25 * layers_sharing(j, ny_) * layers_sharing(k, nz_);
@@ -164,6 +226,10 @@ double Lattice::area_factor(index_t bar) const {
 }
 
 std::string Lattice::describe() const {
+  if (present_)
+    return fmt::format("{} x {} x {} modules of L = {} m, {} of them present: {} nodes, {} bars",
+                       nx_, ny_, nz_, L_, num_present_modules(), num_present_nodes(),
+                       num_present_bars());
   return fmt::format("{} x {} x {} modules of L = {} m: {} nodes, {} bars", nx_, ny_, nz_, L_,
                      num_nodes(), num_bars());
 }

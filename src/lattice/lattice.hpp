@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -94,7 +95,28 @@ public:
   double L() const { return L_; }
   std::array<index_t, 3> modules() const { return {nx_, ny_, nz_}; }
   std::uint64_t num_modules() const { return std::uint64_t{nx_} * ny_ * nz_; }
-  double volume() const { return static_cast<double>(num_modules()) * L_ * L_ * L_; }
+  // The volume of the body: its present modules'.
+  double volume() const { return static_cast<double>(num_present_modules()) * L_ * L_ * L_; }
+
+  // A body that is not the full box (lattice/shape.hpp): one byte per module of the box, i
+  // fastest (i + nx (j + ny k)), nonzero where the module is present. Nodes and bars keep the
+  // box's numbering; a node is present when a present module has it, a bar when its area
+  // factor is not zero (an edge bar: some present module shares it; a centre bar: both its
+  // modules are present; a diagonal: its module is). Throws InputError for a mask of the wrong
+  // size. (A window of a distributed run may hold no present module.)
+  void set_modules(std::shared_ptr<const std::vector<std::uint8_t>> present);
+  bool shaped() const { return present_ != nullptr; }
+  const std::shared_ptr<const std::vector<std::uint8_t>>& modules_present() const {
+    return present_;
+  }
+  bool module_present(index_t i, index_t j, index_t k) const {
+    return !present_ || (*present_)[i + std::size_t{nx_} * (j + std::size_t{ny_} * k)] != 0;
+  }
+  bool node_present(index_t node) const;
+  bool bar_present(index_t bar) const { return !present_ || area_factor(bar) > 0.0; }
+  std::uint64_t num_present_modules() const { return present_ ? present_count_[0] : num_modules(); }
+  std::uint64_t num_present_nodes() const { return present_ ? present_count_[1] : num_nodes(); }
+  std::uint64_t num_present_bars() const { return present_ ? present_count_[2] : num_bars(); }
 
   index_t num_corners() const { return num_corners_; }
   index_t num_centres() const { return num_centres_; }
@@ -113,7 +135,7 @@ public:
   NodeAddress node_address(index_t node) const;
   Vec3 position(index_t node) const;
   bool is_centre(index_t node) const { return node >= num_corners_; }
-  // Number of modules (1..8) that share a corner node.
+  // Number of present modules (0..8) that share a corner node.
   int modules_at_corner(index_t i, index_t j, index_t k) const;
 
   const FamilyInfo& family(Family f) const { return families_[static_cast<int>(f)]; }
@@ -126,7 +148,8 @@ public:
   std::array<index_t, 2> bar_nodes(index_t bar) const;
   Vec3 bar_centre(index_t bar) const;
   BarKind bar_kind(index_t bar) const { return family(bar_address(bar).family).kind; }
-  // Boundary scaling of an edge bar: (modules sharing it) / 4; 1 for other bars.
+  // Boundary scaling of an edge bar: (present modules sharing it) / 4; for other bars 1, or 0
+  // where a module they need is absent.
   double area_factor(index_t bar) const;
   double area_factor(Family f, index_t i, index_t j, index_t k) const;
 
@@ -137,6 +160,11 @@ private:
   double L_;
   index_t num_corners_ = 0, num_centres_ = 0, num_bars_ = 0, plane_buffer_size_ = 0;
   std::array<FamilyInfo, kFamilies> families_{};
+  std::shared_ptr<const std::vector<std::uint8_t>> present_;
+  std::array<std::uint64_t, 3> present_count_{}; // modules, nodes, bars
+  // Present modules among those of [i0, i1] x [j0, j1] x [k0, k1] inside the box (indices may
+  // run one below 0, as index_t(-1), or to n, outside it).
+  int present_in(index_t i0, index_t i1, index_t j0, index_t j1, index_t k0, index_t k1) const;
 };
 
 // Number of modules sharing an edge bar along one axis, from the transverse indices

@@ -3,6 +3,7 @@
 #include "util/error.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <fmt/format.h>
 
 namespace ldem {
@@ -38,7 +39,7 @@ std::vector<index_t> select_face(const Lattice& lat, Face face) {
     for (index_t j = 0; j <= n[1]; ++j)
       for (index_t i = 0; i <= n[0]; ++i) {
         const index_t idx[3] = {i, j, k};
-        if (idx[ax] == fixed)
+        if (idx[ax] == fixed && lat.node_present(lat.corner(i, j, k)))
           out.push_back(lat.corner(i, j, k));
       }
   return out;
@@ -58,6 +59,25 @@ std::vector<double> face_tributary_areas(const Lattice& lat, Face face) {
         // A quarter of each module face around the node: modules_sharing_edge along the two
         // axes of the face (1 on the face's border, 2 inside it).
         double a = quarter;
+        if (lat.shaped()) {
+          // The present modules' faces on the face among the (up to 4) around the node.
+          if (!lat.node_present(lat.corner(i, j, k)))
+            continue;
+          const int b0 = ax == 0 ? 1 : 0, b1 = ax == 2 ? 1 : 2;
+          int faces = 0;
+          for (int d0 = -1; d0 <= 0; ++d0)
+            for (int d1 = -1; d1 <= 0; ++d1) {
+              std::int64_t m[3] = {i, j, k};
+              m[ax] = is_max(face) ? n[ax] - 1 : 0;
+              m[b0] += d0;
+              m[b1] += d1;
+              faces += m[b0] >= 0 && m[b0] < n[b0] && m[b1] >= 0 && m[b1] < n[b1] &&
+                       lat.module_present(static_cast<index_t>(m[0]), static_cast<index_t>(m[1]),
+                                          static_cast<index_t>(m[2]));
+            }
+          out.push_back(a * faces);
+          continue;
+        }
         for (int b = 0; b < 3; ++b)
           if (b != ax)
             a *= (idx[b] > 0) + (idx[b] < n[b]);
@@ -75,7 +95,7 @@ std::vector<index_t> select_face_module_centres(const Lattice& lat, Face face) {
     for (index_t j = 0; j < n[1]; ++j)
       for (index_t i = 0; i < n[0]; ++i) {
         const index_t idx[3] = {i, j, k};
-        if (idx[ax] == fixed)
+        if (idx[ax] == fixed && lat.module_present(i, j, k))
           out.push_back(lat.centre(i, j, k));
       }
   return out;
@@ -89,16 +109,18 @@ std::vector<index_t> select_box(const Lattice& lat, Vec3 lo, Vec3 hi) {
     bool inside = true;
     for (int a = 0; a < 3; ++a)
       inside = inside && p[a] >= lo[a] - tol && p[a] <= hi[a] + tol;
-    if (inside)
+    if (inside && lat.node_present(node))
       out.push_back(node);
   }
   return out;
 }
 
 std::vector<index_t> select_all(const Lattice& lat) {
-  std::vector<index_t> out(lat.num_nodes());
+  std::vector<index_t> out;
+  out.reserve(lat.num_present_nodes());
   for (index_t n = 0; n < lat.num_nodes(); ++n)
-    out[n] = n;
+    if (lat.node_present(n))
+      out.push_back(n);
   return out;
 }
 

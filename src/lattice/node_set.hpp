@@ -1,4 +1,5 @@
-// Node sets chosen by geometry. A set is a sorted list of node numbers.
+// Node sets chosen by geometry. A set is a sorted list of node numbers. Only present nodes are
+// chosen (a shaped body's, Lattice::node_present).
 #pragma once
 
 #include "lattice/lattice.hpp"
@@ -23,7 +24,8 @@ struct NodeSet {
 std::vector<index_t> select_face(const Lattice& lattice, Face face);
 // The area of the face each node of select_face(lattice, face) stands for, in the same
 // order: a quarter of every module face around it (L^2 / 4 at the face's corners, L^2 / 2 on
-// its border, L^2 inside); they add up to the face's area.
+// its border, L^2 inside); they add up to the face's area (in a shaped body, a quarter of each
+// present module's face around it: they add up to the body's area on the face).
 std::vector<double> face_tributary_areas(const Lattice& lattice, Face face);
 // Centre nodes of the layer of modules that touches a face ("centre nodes of the
 // modules on the top face"): loads applied there reach the body without the

@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fmt/format.h>
 #include <fstream>
 #include <iterator>
@@ -91,8 +92,22 @@ std::vector<index_t> select_shape(const Lattice& lat, const Shape& shape) {
   const double tol = 1e-9 * lat.L();
   std::vector<index_t> out;
   for (index_t node = 0; node < lat.num_nodes(); ++node)
-    if (shape.contains(lat.position(node), tol))
+    if (lat.node_present(node) && shape.contains(lat.position(node), tol))
       out.push_back(node);
+  return out;
+}
+
+std::vector<index_t> select_surface(const Lattice& lat, const Shape& shape) {
+  const double tol = 1e-9 * lat.L();
+  std::vector<index_t> out;
+  for (index_t k = 0; k <= lat.nz(); ++k)
+    for (index_t j = 0; j <= lat.ny(); ++j)
+      for (index_t i = 0; i <= lat.nx(); ++i) {
+        const int around = lat.modules_at_corner(i, j, k);
+        const index_t node = lat.corner(i, j, k);
+        if (around > 0 && around < 8 && shape.contains(lat.position(node), tol))
+          out.push_back(node);
+      }
   return out;
 }
 
@@ -242,6 +257,11 @@ std::string header_value(const std::string& header, const std::string& key) {
 
 std::vector<std::uint8_t> read_npy_mask(const std::string& path, index_t nx, index_t ny,
                                         index_t nz) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
+    throw InputError(fmt::format("{}: expected a mask file, got something else (a folder, a "
+                                 "device)",
+                                 path));
   std::ifstream in(path, std::ios::binary);
   if (!in)
     throw InputError(fmt::format("{}: cannot open the mask file", path));

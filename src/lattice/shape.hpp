@@ -27,6 +27,7 @@ struct Shape {
   Vec3 normal;
   // Mask: one value per module of the grid, i fastest (i + nx (j + ny k)); nonzero is inside.
   std::shared_ptr<const std::vector<std::uint8_t>> mask;
+  std::string file; // the mask's file as the case gives it
 
   // Whether p lies in the shape grown by `tol` (boundaries included). Not for masks.
   bool contains(Vec3 p, double tol = 0.0) const;
@@ -34,8 +35,12 @@ struct Shape {
   std::string describe() const;
 };
 
-// Every node of the lattice inside the shape (to within 1e-9 L): a node set by shape.
+// Every present node of the lattice inside the shape (to within 1e-9 L): a node set by shape.
 std::vector<index_t> select_shape(const Lattice& lattice, const Shape& shape);
+// The corner nodes of the body's surface inside the shape: those with fewer than 8 present
+// modules around them (on the box's faces, or beside an absent module). A loading strip on a
+// disc, the curved face of a cylinder.
+std::vector<index_t> select_surface(const Lattice& lattice, const Shape& shape);
 
 struct ShapeOp {
   bool add = false; // add the shape's modules, or remove them

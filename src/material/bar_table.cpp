@@ -89,8 +89,10 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
     if (!v->empty() && v->size() != nb)
       throw InputError(
           fmt::format("material fields: expected one value per bar ({}), got {}", nb, v->size()));
+  // A shaped body keeps per-bar stiffnesses: its area factors vary along the rows, and its
+  // absent bars have none.
   const bool varies = !fields.E.empty() || !fields.Gf.empty() || !fields.e_p.empty() ||
-                      !fields.e_r.empty() || !fields.R_f.empty();
+                      !fields.e_r.empty() || !fields.R_f.empty() || lat.shaped();
   const bool er_given = spec.e_r.has_value() || !fields.e_r.empty();
   ranges_.rule = fmt::format(
       "e_p {}; {}", spec.e_p || !fields.e_p.empty() ? "given" : "from R_f and Gf (eq. 7)",
@@ -152,6 +154,15 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
       const BarAddress a = lat.bar_address(b);
       const FamilyMaterial& m = families_[static_cast<int>(a.family)];
       const BarKind kind = lat.family(a.family).kind;
+      const double factor = lat.area_factor(a.family, a.i, a.j, a.k);
+      if (factor == 0.0) {
+        // A bar of no present module: no stiffness, and strengths no strain reaches, so that
+        // it never changes state (its nodes may be absent ones, which stay where they are).
+        k_[b] = 0.0;
+        e_p_[b] = kAbsentBarStrain;
+        e_r_[b] = 2.0 * kAbsentBarStrain;
+        continue;
+      }
       const double E = fields.E.empty() ? spec.E : fields.E[b];
       const double Gf_in = fields.Gf.empty() ? spec.Gf : fields.Gf[b];
       double ep = e_p;
@@ -164,7 +175,7 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
                                      "expected all positive",
                                      body_bar(b), E, Gf_in, ep));
       const double ratio = kind == BarKind::Normal ? ratio_n : ratio_d;
-      k_[b] = E * m.area / m.l0 * lat.area_factor(a.family, a.i, a.j, a.k);
+      k_[b] = E * m.area / m.l0 * factor;
       e_p_[b] = ep;
       double Gf = Gf_in;
       if (er_given) {
@@ -230,6 +241,8 @@ BarTable::Properties BarTable::properties(const Lattice& lat, index_t bar) const
   const BarAddress a = lat.bar_address(bar);
   const FamilyMaterial& m = families_[static_cast<int>(a.family)];
   const double factor = lat.area_factor(a.family, a.i, a.j, a.k);
+  if (factor == 0.0)
+    return {0.0, 0.0, 0.0, 0.0}; // an absent bar of a shaped body
   const BilinearLaw l = law(lat, bar);
   const double EA = axial_stiffness(lat, bar);
   return {EA / (m.area * factor), 0.5 * EA * l.e_p * l.e_r * m.l0 / (m.area_f * factor), l.e_p,

@@ -19,11 +19,11 @@ namespace ldem {
 // The fatigue constants of `law = "bilinear_fatigue"` (bar_law_fatigue.hpp), as a case gives
 // them: A for bars of length `length`.
 struct FatigueSpec {
-  double A = 0.0;         // life used per cycle at a strain range of 1 [1/cycle]
-  double m = 1.0;         // exponent of the strain range
-  double threshold = 0.0; // strain ranges at or below it use no life
-  double gate = 0.0;      // hysteresis of the turning points of the strain
-  double length = 0.0;    // the bar length A is given for [m]
+  double A = 0.0;                 // life used per cycle at a strain range of 1 [1/cycle]
+  double m = 1.0;                 // exponent of the strain range
+  double threshold = 0.0;         // strain ranges at or below it use no life
+  double gate = 0.0;              // hysteresis of the turning points of the strain
+  double length = 0.0;            // the bar length A is given for [m]
   std::uint64_t count_every = 10; // steps between two samples of the strains for the count
   // Cycle jumping (docs/model.md, "Cycle jumping"): resolve `jump_window` load cycles, then
   // jump as many cycles as leave at most `jump_breaks` bars at the end of their life, at most
@@ -50,8 +50,8 @@ struct MaterialSpec {
   // When given, the diagonals' K_r follows from the same Gf so that both kinds keep
   // the eq. 12 relation (diagonal K_r = normal K_r x ratio of eqs. 14-15 x l_n / l_d).
   std::optional<double> e_r;
-  bool single_ratio = false; // use the paper's single A^f/A = 0.34 for both kinds (eq. 16)
-  bool allow_low_kr = false; // accept K_r < 1 (unstable softening; the user asked for it)
+  bool single_ratio = false;          // use the paper's single A^f/A = 0.34 for both kinds (eq. 16)
+  bool allow_low_kr = false;          // accept K_r < 1 (unstable softening; the user asked for it)
   std::optional<FatigueSpec> fatigue; // law = "bilinear_fatigue" only
 };
 
@@ -78,6 +78,10 @@ struct MaterialRanges {
   double rho[2]; // of the modules
   std::string rule;
 };
+
+// The peak strain given to the bars of a shaped body's box that no present module has
+// (Lattice::bar_present): no strain reaches it, so they stay pristine, with no stiffness.
+inline constexpr double kAbsentBarStrain = 1e30;
 
 struct FamilyMaterial {
   double k = 0.0;      // E A / l0 of a bar with area factor 1 [N/m]

@@ -21,9 +21,11 @@ public:
 
 private:
   Lattice whole_;
+  PresentRanks ranks_; // a shaped body's: its snapshots hold the present nodes and bars only
   VtuLayout layout_;
   std::vector<Span> nodes_, bars_; // owned
   std::vector<char> buf_;          // one span's values, reused
+  std::vector<index_t> picks_;     // the span's items the file holds
   std::vector<std::uint8_t> state_;
   std::vector<double> damage_, force_;
   std::vector<Vec3> u_, v_;       // one span's node states, reused

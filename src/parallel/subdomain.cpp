@@ -161,7 +161,19 @@ int owner_rank(const Subdomain& any, index_t j, index_t k) {
 }
 
 Lattice window_lattice(const Subdomain& sub, const Lattice& whole) {
-  return Lattice(whole.nx(), sub.y.local_n(), sub.z.local_n(), whole.L());
+  Lattice local(whole.nx(), sub.y.local_n(), sub.z.local_n(), whole.L());
+  if (whole.shaped()) {
+    // The window's share of a shaped body's modules.
+    auto present = std::make_shared<std::vector<std::uint8_t>>();
+    present->reserve(local.num_modules());
+    const std::vector<std::uint8_t>& body = *whole.modules_present();
+    for (index_t k = sub.z.w0; k < sub.z.w1; ++k)
+      for (index_t j = sub.y.w0; j < sub.y.w1; ++j)
+        for (index_t i = 0; i < whole.nx(); ++i)
+          present->push_back(body[i + std::size_t{whole.nx()} * (j + std::size_t{whole.ny()} * k)]);
+    local.set_modules(std::move(present));
+  }
+  return local;
 }
 
 std::vector<Span> subdomain_node_spans(const Subdomain& sub, const Lattice& whole, bool owned) {

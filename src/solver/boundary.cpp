@@ -41,6 +41,11 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
     bc.velocity_slots.push_back(slots_of(v.set));
   for (const NodalLoad& l : core.cond.loads)
     bc.load_slots.push_back(slots_of(l.set));
+  // A shaped body's nodes outside it: held (they have no mass and no bar with a stiffness).
+  if (core.lat.shaped())
+    for (index_t n = 0; n < nn; ++n)
+      if (!core.lat.node_present(n))
+        held[n] = kDofAll;
   if (core.cond.plane_strain_axis >= 0) {
     if (core.cond.plane_strain_axis > 2)
       throw InputError(fmt::format("plane strain axis: expected 0, 1 or 2, got {}",

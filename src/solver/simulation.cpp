@@ -18,6 +18,8 @@ namespace {
 // of its 8 corners, so a corner carries (modules sharing it) / 16 rho L^3 (1/2 inside,
 // 1/4 on a face, 1/8 on an edge, 1/16 at a box corner) and the total is rho V exactly.
 // With a density field (one value per module) each module lumps its own mass the same way.
+// A shaped body's absent modules lump nothing: its nodes that no present module has get no
+// mass (the simulation holds them).
 std::vector<double> lumped_masses(const Lattice& lat, double rho,
                                   const std::vector<double>& rho_m) {
   const double V = lat.L() * lat.L() * lat.L();
@@ -28,13 +30,15 @@ std::vector<double> lumped_masses(const Lattice& lat, double rho,
         for (index_t i = 0; i <= lat.nx(); ++i)
           m[lat.corner(i, j, k)] = rho * V * lat.modules_at_corner(i, j, k) / 16.0;
     for (index_t c = lat.num_corners(); c < lat.num_nodes(); ++c)
-      m[c] = 0.5 * rho * V;
+      m[c] = lat.node_present(c) ? 0.5 * rho * V : 0.0;
     return m;
   }
   for (index_t k = 0; k < lat.nz(); ++k)
     for (index_t j = 0; j < lat.ny(); ++j)
       for (index_t i = 0; i < lat.nx(); ++i) {
         const index_t module = lat.centre(i, j, k) - lat.num_corners();
+        if (!lat.module_present(i, j, k))
+          continue;
         const double mm = rho_m[module] * V;
         m[lat.centre(i, j, k)] = 0.5 * mm;
         for (index_t c = 0; c < 8; ++c)
@@ -63,8 +67,8 @@ double time_step_by_rule(const TimeStep& step, const StableStep& stable, double 
     break;
   case TimeStep::Rule::Paper:
     if (!(step.courant > 0.0 && step.courant <= 1.0))
-      throw InputError(fmt::format("time.courant: expected a value in (0, 1], got {:g}",
-                                   step.courant));
+      throw InputError(
+          fmt::format("time.courant: expected a value in (0, 1], got {:g}", step.courant));
     dt = step.courant * L / c;
     break;
   }
@@ -113,10 +117,15 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   c.layout = build_step_layout(c.lat, c.table, law_->elastic_limits(c.table));
   const std::size_t slots = c.layout.slot_count;
   // Masses and held DOF by node number while the step is set up, then in the slots only.
-  const std::vector<double> mass = lumped_masses(c.lat, c.table.spec().rho, c.table.rho_module());
+  std::vector<double> mass = lumped_masses(c.lat, c.table.spec().rho, c.table.rho_module());
   c.mass.assign(slots, 0.0);
   c.inv_mass.assign(slots, 0.0);
+  // The nodes of a shaped body's box that no present module has: no mass and no bar with a
+  // stiffness, held where they are (a unit mass keeps the arithmetic finite; its node never
+  // moves, so it adds no energy).
   for (index_t n = 0; n < c.lat.num_nodes(); ++n) {
+    if (!(mass[n] > 0.0))
+      mass[n] = 1.0;
     c.mass[c.slot(n)] = mass[n];
     c.inv_mass[c.slot(n)] = 1.0 / mass[n];
   }
@@ -482,11 +491,11 @@ void Simulation::step(bool report) {
     c.report_work = c.ledger.state().work;
     c.report_work.add(work_half);
     c.report_damping2 = Ledger::twice_damping_at_report(c.ledger.state(), damping);
-    c.report = energy_report(
-        t, c.report_work.value(), elastic, kinetic.value(), damage, 0.5 * c.report_damping2.value(),
-        c.ledger.initial(),
-        balance_floor(c.table.ranges().E[1], c.table.ranges().e_p[1], c.lat.volume()),
-        bars.fatigue);
+    c.report =
+        energy_report(t, c.report_work.value(), elastic, kinetic.value(), damage,
+                      0.5 * c.report_damping2.value(), c.ledger.initial(),
+                      balance_floor(c.table.ranges().E[1], c.table.ranges().e_p[1], c.lat.volume()),
+                      bars.fatigue);
   }
   c.ledger.work().add(load_mid);
   c.ledger.damping().add(damping);
@@ -624,7 +633,7 @@ double Simulation::bytes_per_module() const {
     total += bytes(b);
   if (c.table.per_bar())
     total += bytes(c.table.k_bar()) + bytes(c.table.e_p_bar()) + bytes(c.table.e_r_bar());
-  return total / static_cast<double>(c.lat.num_modules());
+  return total / static_cast<double>(c.lat.num_present_modules());
 }
 
 } // namespace ldem

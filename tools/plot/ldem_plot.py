@@ -77,6 +77,30 @@ def face_on_plane(case):
     return tuple(sorted(sorted(range(3), key=lambda i: -n[i])[:2]))
 
 
+def draw_body(ax, d, L, plane, slab):
+    """A shaped body (body.npy in the run folder): its modules in light grey, projected on the
+    plane (a module column counts where any of its modules is present), or those of the slab."""
+    path = os.path.join(d, "body.npy")
+    if not os.path.exists(path):
+        return
+    import numpy as np
+    body = np.load(path) != 0  # [i, j, k]
+    a, b = plane
+    depth = 3 - a - b
+    if slab:
+        k, v, _ = slab
+        layer = min(max(int(v / L), 0), body.shape[k] - 1)
+        cut = np.take(body, layer, axis=k)
+    else:
+        cut = body.any(axis=depth)
+    if cut.shape != (body.shape[a], body.shape[b]):
+        cut = cut.T
+    mm = 1e3
+    ax.imshow(np.where(cut.T, 0.93, 1.0), origin="lower", cmap="gray", vmin=0.0, vmax=1.0,
+              extent=(0, body.shape[a] * L * mm, 0, body.shape[b] * L * mm),
+              interpolation="nearest", zorder=0)
+
+
 def draw_crack(ax, d, case, legend=True, plane=None, depth=None, slab=None, events=None):
     """The crack pattern of run folder d on ax, projected on `plane` (two axis indices, default
     the body's face-on plane); `depth`: colour broken bars by this axis; `slab` = (axis, value,
@@ -93,6 +117,7 @@ def draw_crack(ax, d, case, legend=True, plane=None, depth=None, slab=None, even
         broken = {bar: p for bar, p in broken.items() if abs(p[k] - v) <= w}
     ax.add_patch(plt.Rectangle((0, 0), ext[a], ext[b], fill=False, lw=0.8, color="0.3"))
     mm = 1e3
+    draw_body(ax, d, L, (a, b), slab)
     if soft:
         ps = list(soft.values())
         ax.scatter([p[a] * mm for p in ps], [p[b] * mm for p in ps], s=2, c="0.65", lw=0,
