@@ -783,5 +783,98 @@ TEST(CaseFile, BadGeometryIsRefused) {
             std::string::npos);
 }
 
+// [[region]]: the bars whose centres lie inside a region take its properties (numbers or
+// fields), the modules inside it its density; a later region wins; distributed windows get the
+// same values (case_fields for a list of bars).
+TEST(CaseFile, RegionsGiveTheirMaterialInsideTheirShapes) {
+  const std::string path = test_case_path();
+  std::ofstream(path) << kGood + R"(
+[[region]]
+shape = { type = "box", min = [0, -1, 0], max = [0.02, 1, 0.02] }
+E = 60e9
+Gf = { type = "weibull", mean = 200.0, cv = 0.1, seed = 3 }
+rho = 3000
+
+[[region]]
+shape = { type = "box", min = [0, -1, 0], max = [0.01, 1, 0.01] }
+E = 10e9
+)";
+  const BuiltCase c = build_case(path);
+  const Lattice& lat = c.sim->lattice();
+  const BarTable& table = c.sim->table();
+  ASSERT_TRUE(table.per_bar());
+  const double tol = 1e-9 * lat.L();
+  std::size_t in_first = 0, in_second = 0;
+  for (index_t b = 0; b < lat.num_bars(); ++b) {
+    const Vec3 x = lat.bar_centre(b);
+    const bool second = x.x <= 0.01 + tol && x.z <= 0.01 + tol;
+    const bool first = x.x <= 0.02 + tol && x.z <= 0.02 + tol;
+    const BarTable::Properties p = table.properties(lat, b);
+    if (second) {
+      EXPECT_NEAR(p.E, 10e9, 1e-6 * 10e9) << b;
+      ++in_second;
+    } else if (first) {
+      EXPECT_NEAR(p.E, 60e9, 1e-6 * 60e9) << b;
+      ++in_first;
+    } else {
+      EXPECT_NEAR(p.E, 30e9, 1e-6 * 30e9) << b;
+      EXPECT_NEAR(p.Gf, 100.0, 1e-6 * 100.0) << b; // e_p given, Gf as [material] gives it
+    }
+  }
+  EXPECT_GT(in_first, 0u);
+  EXPECT_GT(in_second, 0u);
+  // The Weibull Gf inside the first region varies bar by bar about its mean.
+  const BarFields f = case_fields(c.spec, lat, nullptr, nullptr);
+  ASSERT_EQ(f.Gf.size(), lat.num_bars());
+  double lo = INFINITY, hi = 0.0;
+  for (index_t b = 0; b < lat.num_bars(); ++b) {
+    const Vec3 x = lat.bar_centre(b);
+    if (x.x <= 0.02 + tol && x.z <= 0.02 + tol) {
+      lo = std::min(lo, f.Gf[b]);
+      hi = std::max(hi, f.Gf[b]);
+    } else {
+      EXPECT_EQ(f.Gf[b], 100.0);
+    }
+  }
+  EXPECT_LT(lo, 200.0);
+  EXPECT_GT(hi, 200.0);
+  // The same values for a list of bars (a window's): bar by bar.
+  const std::vector<index_t> some = {0, 7, lat.num_bars() / 2, lat.num_bars() - 1};
+  const std::vector<index_t> modules = {0, 5, 15};
+  const BarFields g = case_fields(c.spec, lat, &some, &modules);
+  for (std::size_t q = 0; q < some.size(); ++q) {
+    EXPECT_EQ(g.E[q], f.E[some[q]]);
+    EXPECT_EQ(g.Gf[q], f.Gf[some[q]]);
+  }
+  // Densities: the 2 x 2 modules in the first region's box at 3000, the rest 2400; the masses
+  // sum to rho V over the modules.
+  ASSERT_EQ(f.rho.size(), lat.num_modules());
+  EXPECT_EQ(g.rho[0], 3000.0);
+  EXPECT_EQ(g.rho[1], 3000.0); // module (1, 0, 1)
+  EXPECT_EQ(g.rho[2], 2400.0); // module (3, 0, 3)
+  double mass = 0.0;
+  for (index_t n = 0; n < lat.num_nodes(); ++n)
+    mass += c.sim->mass(n);
+  const double V = lat.L() * lat.L() * lat.L();
+  EXPECT_NEAR(mass, (4 * 3000.0 + 12 * 2400.0) * V, 1e-12 * mass);
+  const toml::table resolved = toml::parse(resolved_case_toml(c, body_numbers(*c.sim)));
+  EXPECT_DOUBLE_EQ(resolved["region"][1]["E"].value_or(0.0), 10e9);
+  EXPECT_EQ(resolved["region"][0]["shape"]["type"].value_or(std::string()), "box");
+}
+
+// A region's properties follow [material]'s rule, and a region must give one.
+TEST(CaseFile, RegionsFollowTheMaterialsRule) {
+  const std::string box =
+      "\n[[region]]\nshape = { type = \"sphere\", centre = [0, 0, 0], radius = 0.01 }\n";
+  EXPECT_NE(error_of(kGood + box + "R_f = 1.0\n").find("region[0].R_f: [material] gives e_p"),
+            std::string::npos);
+  EXPECT_NE(error_of(kGood + box + "e_r = 1e-3\n").find("region[0].e_r: [material] gives no e_r"),
+            std::string::npos);
+  EXPECT_NE(error_of(kGood + box).find("region[0].shape: a region gives no property"),
+            std::string::npos);
+  EXPECT_NE(error_of(kGood + box + "nu = 0.2\n").find("region[0].nu"), std::string::npos);
+  EXPECT_NE(error_of(kGood + "\n[[region]]\nE = 1e9\n").find("region[0].shape"), std::string::npos);
+}
+
 } // namespace
 } // namespace ldem

@@ -57,10 +57,10 @@ for grid in ${THICK_GRIDS:-2x1 3x1 2x2}; do
     --process-grid $py $pz >/dev/null 2>"$T/err" || bad "thick plate on $py x $pz: $(cat "$T/err")"
   compare "$T/thick-1" "$T/thick-$py$pz" "thick plate: $py x $pz processes against one"
 done
-# A shaped body across processes: the thick plate with a hole through its thickness and a
-# spherical pore cut from one face, on 2 x 2 boxes (windows hold absent modules, the snapshots
+# A shaped body across processes: the thick plate with a hole through its thickness, a
+# spherical pore cut from one face and a stiffer, denser top layer ([[region]]), on 2 x 2 boxes (windows hold absent modules, the snapshots
 # their present nodes and bars only).
-{ sed "s/^end = .*/end = ${HOLED_END:-0.8e-3}/" "$T/thick.toml"; printf '\n[[geometry]]\nremove = { type = "cylinder", start = [0.14, -1, 0.05], end = [0.14, 1, 0.05], radius = 0.02 }\n\n[[geometry]]\nremove = { type = "sphere", centre = [0.09, 0.02, 0.03], radius = 0.012 }\n'; } >"$T/holed.toml"
+{ sed "s/^end = .*/end = ${HOLED_END:-0.8e-3}/" "$T/thick.toml"; printf '\n[[geometry]]\nremove = { type = "cylinder", start = [0.14, -1, 0.05], end = [0.14, 1, 0.05], radius = 0.02 }\n\n[[geometry]]\nremove = { type = "sphere", centre = [0.09, 0.02, 0.03], radius = 0.012 }\n\n[[region]]\nshape = { type = "box", min = [0, -1, 0.06], max = [0.2, 1, 0.1] }\nE = 50.0e9\nrho = { type = "weibull", mean = 2600.0, cv = 0.05, seed = 9 }\n'; } >"$T/holed.toml"
 "$LDEM" run "$T/holed.toml" --out "$T/holed-1" --no-plot --threads 1 >/dev/null 2>"$T/err" ||
   bad "holed plate on one process: $(cat "$T/err")"
 mpi 4 run "$T/holed.toml" --out "$T/holed-22" --no-plot --threads 1 --process-grid 2 2 \

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <numbers>
+#include <numeric>
 #include <sstream>
 #include <toml++/toml.h>
 #include <variant>
@@ -183,6 +184,68 @@ void check_conditions_agree(const CaseSpec& s, const std::vector<NodeSet>& sets,
 
 } // namespace
 
+BarFields case_fields(const CaseSpec& s, const Lattice& whole, const std::vector<index_t>* bars,
+                      const std::vector<index_t>* modules) {
+  BarFields out;
+  const double tol = 1e-9 * whole.L();
+  // The items' numbers in the body, and where each lies.
+  std::vector<index_t> all_bars, all_modules;
+  if (!bars) {
+    all_bars.resize(whole.num_bars());
+    std::iota(all_bars.begin(), all_bars.end(), index_t{0});
+    bars = &all_bars;
+  }
+  if (!modules) {
+    all_modules.resize(whole.num_modules());
+    std::iota(all_modules.begin(), all_modules.end(), index_t{0});
+    modules = &all_modules;
+  }
+  const auto module_centre = [&](index_t m) {
+    const index_t i = m % whole.nx(), j = (m / whole.nx()) % whole.ny(),
+                  k = m / (whole.nx() * whole.ny());
+    return whole.position(whole.centre(i, j, k));
+  };
+  struct Property {
+    const std::optional<Field>* field;
+    std::optional<double> value; // the [material]'s number where no field is given
+    std::optional<Field> RegionSpec::*in_region;
+    std::vector<double>* out;
+    bool per_module;
+  };
+  const MaterialSpec& m = s.material;
+  const Property props[] = {{&s.fields.E, m.E, &RegionSpec::E, &out.E, false},
+                            {&s.fields.Gf, m.Gf, &RegionSpec::Gf, &out.Gf, false},
+                            {&s.fields.e_p, m.e_p, &RegionSpec::e_p, &out.e_p, false},
+                            {&s.fields.e_r, m.e_r, &RegionSpec::e_r, &out.e_r, false},
+                            {&s.fields.R_f, m.R_f, &RegionSpec::R_f, &out.R_f, false},
+                            {&s.fields.rho, m.rho, &RegionSpec::rho, &out.rho, true}};
+  for (const Property& p : props) {
+    const bool in_regions =
+        std::any_of(s.regions.begin(), s.regions.end(),
+                    [&](const RegionSpec& r) { return (r.*p.in_region).has_value(); });
+    if (!*p.field && !in_regions)
+      continue;
+    const std::vector<index_t>& items = p.per_module ? *modules : *bars;
+    auto evaluate = [&](const Field& f) {
+      return p.per_module ? evaluate_field_modules(f, whole, items)
+                          : evaluate_field(f, whole, items);
+    };
+    *p.out = *p.field ? evaluate(**p.field) : std::vector<double>(items.size(), *p.value);
+    for (const RegionSpec& r : s.regions) {
+      const std::optional<Field>& f = r.*p.in_region;
+      if (!f)
+        continue;
+      std::vector<double> values = evaluate(*f);
+      for (std::size_t q = 0; q < items.size(); ++q) {
+        const Vec3 x = p.per_module ? module_centre(items[q]) : whole.bar_centre(items[q]);
+        if (r.shape.contains(x, tol))
+          (*p.out)[q] = values[q];
+      }
+    }
+  }
+  return out;
+}
+
 const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name) {
   for (const NodeSet& s : sets)
     if (s.name == name)
@@ -290,28 +353,27 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       }
       c.probe_bars.push_back(best);
     }
-    BarFields fields;
-    const std::pair<const std::optional<Field>*, std::vector<double>*> props[] = {
-        {&s.fields.E, &fields.E},
-        {&s.fields.Gf, &fields.Gf},
-        {&s.fields.e_p, &fields.e_p},
-        {&s.fields.e_r, &fields.e_r},
-        {&s.fields.R_f, &fields.R_f}};
-    const char* names[] = {"material.E", "material.Gf", "material.e_p", "material.e_r",
-                           "material.R_f"};
+    const std::pair<const std::optional<Field>*, const char*> given[] = {
+        {&s.fields.E, "material.E"},     {&s.fields.Gf, "material.Gf"},
+        {&s.fields.e_p, "material.e_p"}, {&s.fields.e_r, "material.e_r"},
+        {&s.fields.R_f, "material.R_f"}, {&s.fields.rho, "material.rho"}};
+    for (const auto& [f, name] : given)
+      if (*f)
+        validate_field(**f, lat, name);
+    for (std::size_t i = 0; i < s.regions.size(); ++i) {
+      const RegionSpec& rg = s.regions[i];
+      const std::pair<const std::optional<Field>*, const char*> in[] = {
+          {&rg.E, "E"},     {&rg.Gf, "Gf"},   {&rg.e_p, "e_p"},
+          {&rg.e_r, "e_r"}, {&rg.R_f, "R_f"}, {&rg.rho, "rho"}};
+      for (const auto& [f, name] : in)
+        if (*f)
+          validate_field(**f, lat, fmt::format("region[{}].{}", i, name));
+    }
     // Evaluated over the whole body only where it is built: a distributed run's other
     // processes evaluate their windows (run_body_distributed.cpp).
-    for (int i = 0; i < 5; ++i)
-      if (const auto& f = *props[i].first) {
-        validate_field(*f, lat, names[i]);
-        if (with_simulation)
-          *props[i].second = evaluate_field(*f, lat);
-      }
-    if (s.fields.rho) {
-      validate_field(*s.fields.rho, lat, "material.rho");
-      if (with_simulation)
-        fields.rho = evaluate_field_modules(*s.fields.rho, lat);
-    }
+    BarFields fields;
+    if (with_simulation)
+      fields = case_fields(s, lat, nullptr, nullptr);
     if (s.material.fatigue && s.material.fatigue->jump) {
       // The cycles a jump skips: those of the case's growing_sine terms, one frequency.
       std::vector<const TimeFunction*> functions;
@@ -434,6 +496,24 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     root["lattice"].as_table()->insert("modules_present",
                                        static_cast<std::int64_t>(lat.num_present_modules()));
     root["lattice"].as_table()->insert("volume", lat.volume());
+  }
+  if (!s.regions.empty()) {
+    toml::array regions;
+    for (const RegionSpec& r : s.regions) {
+      toml::table t{{"shape", shape_table(r.shape)}};
+      const std::pair<const char*, const std::optional<Field>*> props[] = {
+          {"E", &r.E},     {"Gf", &r.Gf},   {"e_p", &r.e_p},
+          {"e_r", &r.e_r}, {"R_f", &r.R_f}, {"rho", &r.rho}};
+      for (const auto& [name, f] : props)
+        if (*f) {
+          if ((*f)->kind == Field::Kind::Constant)
+            t.insert(name, (*f)->value);
+          else
+            t.insert(name, describe_field(**f));
+        }
+      regions.push_back(std::move(t));
+    }
+    root.insert("region", regions);
   }
   toml::table mat{{"law", s.law},
                   {"E", s.material.E},

@@ -44,6 +44,13 @@ struct BuiltCase {
   std::optional<LoadCycle> cycle;
 };
 
+// The per-bar and per-module properties of a case's material: its fields, then each
+// [[region]] over the bars and modules whose centres lie inside it; for the bars `bars` and the
+// modules `modules` of the body `whole` (their body numbers, in order; null: all of them).
+// A property neither a field nor a region gives stays empty (uniform).
+BarFields case_fields(const CaseSpec& s, const Lattice& whole, const std::vector<index_t>* bars,
+                      const std::vector<index_t>* modules);
+
 // The node set named `name` among `sets`; throws InputError when there is none.
 const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name);
 

@@ -88,31 +88,19 @@ DistributedBody::DistributedBody(BuiltCase& c, ProcessGrid grid, int rank)
   // (random draws by the body's numbers, correlated fields from the body's one grid), the
   // values the whole body has there.
   const CaseSpec::Fields& given = c.spec.fields;
-  BarFields fields;
-  std::vector<index_t> global_bars;
-  if (given.E || given.Gf || given.e_p || given.e_r || given.R_f) {
+  std::vector<index_t> global_bars, modules;
+  if (given.E || given.Gf || given.e_p || given.e_r || given.R_f || !c.spec.regions.empty()) {
     global_bars.resize(local.num_bars());
     for (index_t b = 0; b < local.num_bars(); ++b)
       global_bars[b] = global_bar(sub, local, whole, b);
   }
-  const std::pair<const std::optional<Field>*, std::vector<double>*> props[] = {
-      {&given.E, &fields.E},
-      {&given.Gf, &fields.Gf},
-      {&given.e_p, &fields.e_p},
-      {&given.e_r, &fields.e_r},
-      {&given.R_f, &fields.R_f}};
-  for (const auto& [field, values] : props)
-    if (*field)
-      *values = evaluate_field(**field, whole, global_bars);
-  if (given.rho) { // the window's modules (i, j, k), numbered i + nx (j + ny k) in the body
-    std::vector<index_t> modules;
-    modules.reserve(local.num_modules());
-    for (index_t k = sub.z.w0; k < sub.z.w1; ++k)
-      for (index_t j = sub.y.w0; j < sub.y.w1; ++j)
-        for (index_t i = 0; i < whole.nx(); ++i)
-          modules.push_back(i + whole.nx() * (j + whole.ny() * k));
-    fields.rho = evaluate_field_modules(*given.rho, whole, modules);
-  }
+  // The window's modules (i, j, k), numbered i + nx (j + ny k) in the body.
+  modules.reserve(local.num_modules());
+  for (index_t k = sub.z.w0; k < sub.z.w1; ++k)
+    for (index_t j = sub.y.w0; j < sub.y.w1; ++j)
+      for (index_t i = 0; i < whole.nx(); ++i)
+        modules.push_back(i + whole.nx() * (j + whole.ny() * k));
+  const BarFields fields = case_fields(c.spec, whole, &global_bars, &modules);
   // The window's table names the body's bars and sums up the bars this process owns; the
   // processes' summaries combine into the body's below.
   BodyWindow window;

@@ -73,6 +73,13 @@ const std::vector<KeyDecl>& case_keys() {
 
     {"geometry", "add", "table", "-", "", -kInf, kInf, false, false, "", "Add the modules whose centres lie inside this shape (see the shape keys below; boundaries included, to within 1e-9 L). When the first [[geometry]] adds, the body starts empty, else from the full box; the tables apply in order."},
     {"geometry", "remove", "table", "-", "", -kInf, kInf, false, false, "", "Remove the modules whose centres lie inside this shape: a hole, a notch with thickness. Pieces joined to the rest only by edges or corners are removed too, with a warning that counts them."},
+    {"region", "shape", "table", "required", "", -kInf, kInf, false, false, "", "The region: the bars whose centres, and the modules (for rho) whose centres, lie inside this shape (boundaries included, to within 1e-9 L; see the shape keys below). A later region wins where regions overlap."},
+    {"region", "E", "float or field", "-", "Pa", 1e-3, 1e15, false, false, "", "Young's modulus inside the region (a number, or a field as in [material])."},
+    {"region", "Gf", "float or field", "-", "N/m", 0, kInf, true, false, "", "Fracture energy inside the region; only where [material] gives no e_r."},
+    {"region", "e_p", "float or field", "-", "", 0, kInf, true, false, "", "Peak strain inside the region; only where [material] gives e_p (not R_f)."},
+    {"region", "e_r", "float or field", "-", "", 0, kInf, true, false, "", "Rupture strain of the normal bars inside the region; only where [material] gives e_r."},
+    {"region", "R_f", "float or field", "-", "m^-1/2", 0, kInf, true, false, "", "Failure factor inside the region; only where [material] gives R_f."},
+    {"region", "rho", "float or field", "-", "kg/m^3", 1e-3, 1e6, false, false, "", "Density of the modules inside the region."},
     {"node_set", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name used by conditions, loads and probes."},
     {"node_set", "face", "string", "-", "", -kInf, kInf, false, false, "\"x-\", \"x+\", \"y-\", \"y+\", \"z-\", \"z+\"", "The corner nodes on this face of the box."},
     {"node_set", "face_centres", "string", "-", "", -kInf, kInf, false, false, "\"x-\", \"x+\", \"y-\", \"y+\", \"z-\", \"z+\"", "The centre nodes of the layer of modules along this face."},
@@ -177,8 +184,8 @@ std::string case_format_markdown() {
       "Tables: `[case]`, `[lattice]`, `[material]`, `[fatigue]` (with `law =\n"
       "\"bilinear_fatigue\"` only), `[time]`, `[output]`, `[analysis]`; arrays\n"
       "of tables:\n"
-      "`[[geometry]]`, `[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`, `[[precrack]]`,\n"
-      "`[[probe]]`;\n"
+      "`[[geometry]]`, `[[region]]`, `[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`,\n"
+      "`[[precrack]]`, `[[probe]]`;\n"
       "a velocity or load may carry `function = [{ type = ..., ... }, ...]`, whose terms are\n"
       "summed; a node set may be a shape, `shape = { type = ..., ... }`. Coordinates are in\n"
       "metres from the box's corner at the origin; the box spans\n"
@@ -187,8 +194,8 @@ std::string case_format_markdown() {
   for (const KeyDecl& k : case_keys()) {
     if (std::string(k.table) != last) {
       const std::string t = k.table;
-      const bool array = t == "geometry" || t == "node_set" || t == "fixed" || t == "velocity" ||
-                         t == "load" || t == "precrack" || t == "probe";
+      const bool array = t == "geometry" || t == "region" || t == "node_set" || t == "fixed" ||
+                         t == "velocity" || t == "load" || t == "precrack" || t == "probe";
       md += fmt::format("\n## {}\n\n| key | type | default | unit | allowed | meaning |\n"
                         "|---|---|---|---|---|---|\n",
                         t == "field"      ? "material fields (`E = { type = ... }`)"

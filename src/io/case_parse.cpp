@@ -52,8 +52,8 @@ std::vector<std::string> split_choices(const std::string& choices) {
 }
 
 const char* kTopTables[] = {"case", "lattice", "material", "fatigue", "time", "output", "analysis"};
-const char* kArrayTables[] = {"geometry", "node_set", "fixed", "velocity",
-                              "load",     "precrack", "probe"};
+const char* kArrayTables[] = {"geometry", "region", "node_set", "fixed",
+                              "velocity", "load",   "precrack", "probe"};
 
 class Reader {
 public:
@@ -318,10 +318,10 @@ public:
   }
 
   // A property that is a number or a field table; `extent` is the body's size per axis.
-  std::optional<Field> opt_field(const toml::table& mat, const char* key,
-                                 const double extent[3]) const {
+  std::optional<Field> opt_field(const toml::table& mat, const char* key, const double extent[3],
+                                 const std::string& where = "material.") const {
     const toml::node* n = mat.get(key);
-    const std::string name = std::string("material.") + key;
+    const std::string name = where + key;
     if (!n || !n->is_table())
       return std::nullopt;
     const toml::table& t = *n->as_table();
@@ -763,6 +763,45 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
       op.add = r.has(t, "add");
       op.shape = r.shape(t, op.add ? "add" : "remove", w, &grid);
       c.geometry.push_back(std::move(op));
+    }
+  }
+
+  {
+    // Material regions: the properties they give, as numbers or fields, inside their shapes.
+    const auto regions = array("region");
+    for (std::size_t i = 0; i < regions.size(); ++i) {
+      const toml::table& t = *regions[i];
+      const std::string w = fmt::format("region[{}].", i);
+      r.check_known(t, "region", w);
+      RegionSpec rg;
+      rg.shape = r.shape(t, "shape", w);
+      const std::pair<const char*, std::optional<Field>*> keys[] = {
+          {"E", &rg.E},     {"Gf", &rg.Gf},   {"e_p", &rg.e_p},
+          {"e_r", &rg.e_r}, {"R_f", &rg.R_f}, {"rho", &rg.rho}};
+      for (const auto& [key, field] : keys) {
+        *field = r.opt_field(t, key, extent, w);
+        if (!*field)
+          if (const auto v = r.opt_float(t, "region", key, w))
+            *field = Field::constant(*v);
+      }
+      // The region's properties follow [material]'s rule: e_p or R_f as [material] gives
+      // one, and Gf only where e_r is not given (with e_r, Gf follows from it).
+      auto refuse = [&](const char* key, const std::string& why) {
+        r.fail(t.get(key), w + key, why);
+      };
+      if (rg.R_f && c.material.e_p)
+        refuse("R_f", "[material] gives e_p: give the region's e_p, not R_f");
+      if (rg.e_p && c.material.R_f)
+        refuse("e_p", "[material] gives R_f: give the region's R_f, not e_p");
+      if (rg.e_r && !c.material.e_r)
+        refuse("e_r", "[material] gives no e_r (K_r follows from Gf, eq. 12): give the "
+                      "region's Gf, not e_r");
+      if (rg.Gf && c.material.e_r)
+        refuse("Gf", "[material] gives e_r (Gf follows from it, eq. 11): give the region's "
+                     "e_r, not Gf");
+      if (!rg.E && !rg.Gf && !rg.e_p && !rg.e_r && !rg.R_f && !rg.rho)
+        r.fail(&t, w + "shape", "a region gives no property: expected E, Gf, e_p, e_r, R_f or rho");
+      c.regions.push_back(std::move(rg));
     }
   }
 

@@ -28,6 +28,14 @@ struct NodeSetSpec {
   bool surface = false; // or only the corner nodes of the body's surface inside it
 };
 
+// A material region: the properties it gives (numbers as constant fields) replace the
+// [material]'s for the bars whose centres, and the modules (rho) whose centres, lie inside its
+// shape; a later region wins where regions overlap.
+struct RegionSpec {
+  ldem::Shape shape;
+  std::optional<Field> E, Gf, e_p, e_r, R_f, rho;
+};
+
 struct FixedSpec {
   std::string set;
   DofMask dofs = kDofAll;
@@ -101,6 +109,7 @@ struct CaseSpec {
   int plane_strain_axis = -1;
   // The body's modules: the box, changed by these operations in order ([[geometry]]).
   std::vector<ShapeOp> geometry;
+  std::vector<RegionSpec> regions; // [[region]], in order
   MaterialSpec material;
   std::string law = "bilinear"; // the bar law (solver/laws.cpp)
   // Properties given as fields (the MaterialSpec then holds a representative value).
