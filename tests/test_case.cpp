@@ -728,11 +728,11 @@ surface = true
   EXPECT_FALSE(lat.module_present(3, 0, 3));
   // The top face's corners: x in [0, 0.03] (i = 0..3), both y: 8.
   EXPECT_EQ(set_named(c.sets, "top").nodes.size(), 8u);
-  // Every present corner lies on the surface of a one-module-thick plate.
-  std::uint64_t corners = 0;
-  for (index_t n = 0; n < lat.num_corners(); ++n)
-    corners += lat.node_present(n);
-  EXPECT_EQ(set_named(c.sets, "skin").nodes.size(), corners);
+  // The plate is one module thick along y: its faces across are no surface. Per j, of the 5 x 5
+  // corners (i, k): the outline on the box's faces, 14 ((0, 0..4), (1..4, 0), (4, 1..2),
+  // (1..3, 4); (4, 3) and (4, 4) are absent), the removed column's side (3, 2) and (3, 3), and
+  // the 4 corners of the masked module (1, 0, 1): 20.
+  EXPECT_EQ(set_named(c.sets, "skin").nodes.size(), 2u * 20);
   const toml::table resolved = toml::parse(resolved_case_toml(c, body_numbers(*c.sim)));
   EXPECT_EQ(resolved["geometry"][0]["add"]["type"].value_or(std::string()), "npy");
   EXPECT_EQ(resolved["geometry"][0]["add"]["file"].value_or(std::string()), "plate.npy");

@@ -78,7 +78,7 @@ if [ $rc -eq 2 ] && grep -q "not empty" "$T/stderr" && [ "$(ls "$T/full")" = "ma
 # A real run, checked by an independent reader, then re-plotted.
 if "$LDEM" run "$GOOD" --out "$T/run" --threads 2 >"$T/stdout" 2>"$T/stderr"; then ok; else bad "tutorial run: $(cat "$T/stderr")"; fi
 /usr/bin/python3 "$SRC/tests/check_outputs.py" "$T/run" && ok || bad "outputs of the tutorial run"
-[ -s "$T/run/crack.png" ] && [ -s "$T/run/energy.png" ] && ok || bad "PNG plots missing"
+[ -s "$T/run/crack.png" ] && [ -s "$T/run/energy.png" ] && [ -s "$T/run/probes.png" ] && ok || bad "PNG plots missing"
 rm -f "$T/run/crack.png" "$T/run/energy.png"
 "$LDEM" plot "$T/run" && [ -s "$T/run/crack.png" ] && ok || bad "ldem plot"
 "$LDEM" run "$GOOD" --out "$T/run" --force --no-plot >/dev/null 2>&1 && ok || bad "--force into a used folder"

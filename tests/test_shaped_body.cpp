@@ -275,8 +275,8 @@ TEST(ShapedBody, NodeSetsTakeThePresentNodesOnly) {
   EXPECT_EQ(select_face_module_centres(lat, Face::ZMax).size(), 2u * 3);
   EXPECT_EQ(select_all(lat).size(), lat.num_present_nodes());
   EXPECT_EQ(select_box(lat, {3.0, 0.0, 3.0}, {4.0, 3.0, 4.0}).size(), 0u);
-  // The re-entrant faces x = 2 (z in [2, 4]) and z = 2 (x in [2, 4]) are surface; the corner
-  // nodes of the L's inside (modules all around) are not.
+  // The re-entrant faces x = 2 (z in [2, 4]) and z = 2 (x in [2, 4]) are surface, and so are
+  // the box's faces; the corner nodes of the L's inside are not.
   Shape all;
   all.type = Shape::Type::Box;
   all.lo = {-1, -1, -1};
@@ -286,6 +286,8 @@ TEST(ShapedBody, NodeSetsTakeThePresentNodesOnly) {
   for (index_t k = 0; k <= 4; ++k)
     for (index_t j = 0; j <= 3; ++j)
       for (index_t i = 0; i <= 4; ++i) {
+        // Present, with fewer than 8 present modules around (none of the box's axes is one
+        // module thick).
         const int around = lat.modules_at_corner(i, j, k);
         expected += around > 0 && around < 8;
       }
@@ -293,6 +295,7 @@ TEST(ShapedBody, NodeSetsTakeThePresentNodesOnly) {
   EXPECT_TRUE(std::binary_search(surface.begin(), surface.end(), lat.corner(2, 1, 3)));
   EXPECT_TRUE(std::binary_search(surface.begin(), surface.end(), lat.corner(3, 1, 2)));
   EXPECT_FALSE(std::binary_search(surface.begin(), surface.end(), lat.corner(1, 1, 1)));
+  EXPECT_TRUE(std::binary_search(surface.begin(), surface.end(), lat.corner(0, 1, 1)));
 }
 
 // ---------------------------------------------------------------------------------------

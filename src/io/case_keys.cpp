@@ -87,7 +87,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"node_set", "box_max", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "See box_min."},
     {"node_set", "all", "bool", "false", "", -kInf, kInf, false, false, "", "Every node."},
     {"node_set", "shape", "table", "-", "", -kInf, kInf, false, false, "", "Every node inside this shape (`shape = { type = \"sphere\", centre = [...], radius = ... }`; boundaries included, to within 1e-9 L; see the shape keys below): a loading pad, a support, a gauge's region."},
-    {"node_set", "surface", "bool", "false", "", -kInf, kInf, false, false, "", "With shape: only the corner nodes of the body's surface inside the shape (those with fewer than 8 present modules around them): a loading strip on a disc, the curved face of a cylinder."},
+    {"node_set", "surface", "bool", "false", "", -kInf, kInf, false, false, "", "With shape: only the corner nodes of the body's surface inside the shape (beside an absent module or the outside of the box; a body one module thick along an axis, a plate in plane strain, has no surface across it): a loading strip on a disc, the curved face of a cylinder."},
 
     {"shape", "type", "string", "required", "", -kInf, kInf, false, false, "\"box\", \"cylinder\", \"sphere\", \"half_space\", \"npy\"", "The kind of solid; only its own keys apply. \"npy\" (in [[geometry]] only): the modules a NumPy file marks."},
     {"shape", "min", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "box: the corner with the smallest coordinates (before a turn)."},
@@ -141,7 +141,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"output", "energy_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between rows of energy.csv and probes.csv; 0: about 500 rows."},
     {"output", "vtu_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between lattice snapshots; 0: about 20."},
     {"output", "vtu", "bool", "true", "", -kInf, kInf, false, false, "", "Write lattice.pvd and its .vtu files."},
-    {"output", "plots", "bool", "true", "", -kInf, kInf, false, false, "", "Make crack.png and energy.png at the end (also: --no-plot)."},
+    {"output", "plots", "bool", "true", "", -kInf, kInf, false, false, "", "Make crack.png, energy.png and probes.png at the end (also: --no-plot)."},
 
     {"output", "checkpoint_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between checkpoints in checkpoint/ (0: by wall time only). A stop by Ctrl-C or SIGTERM always leaves one; `ldem resume DIR` continues."},
     {"output", "checkpoint_seconds", "float", "600", "s", 0, kInf, false, false, "", "Wall-clock seconds between checkpoints (0: never by time)."},

@@ -103,9 +103,33 @@ std::vector<index_t> select_surface(const Lattice& lat, const Shape& shape) {
   for (index_t k = 0; k <= lat.nz(); ++k)
     for (index_t j = 0; j <= lat.ny(); ++j)
       for (index_t i = 0; i <= lat.nx(); ++i) {
-        const int around = lat.modules_at_corner(i, j, k);
+        // The 8 modules around the corner; beyond the box they are absent, except across a
+        // direction in which the body is one module thick (a slice of a longer body: plane
+        // strain or stress), where they are the slice's own.
+        const index_t at[3] = {i, j, k}, n[3] = {lat.nx(), lat.ny(), lat.nz()};
+        int present = 0, absent = 0;
+        for (int c = 0; c < 8; ++c) {
+          index_t m[3];
+          bool outside = false;
+          for (int a = 0; a < 3; ++a) {
+            const bool below = ((c >> a) & 1) == 0;
+            if (below && at[a] == 0) {
+              outside |= n[a] > 1;
+              m[a] = 0;
+            } else if (!below && at[a] == n[a]) {
+              outside |= n[a] > 1;
+              m[a] = n[a] - 1;
+            } else {
+              m[a] = below ? at[a] - 1 : at[a];
+            }
+          }
+          if (!outside && lat.module_present(m[0], m[1], m[2]))
+            ++present;
+          else
+            ++absent;
+        }
         const index_t node = lat.corner(i, j, k);
-        if (around > 0 && around < 8 && shape.contains(lat.position(node), tol))
+        if (present > 0 && absent > 0 && shape.contains(lat.position(node), tol))
           out.push_back(node);
       }
   return out;

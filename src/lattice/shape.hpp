@@ -37,9 +37,10 @@ struct Shape {
 
 // Every present node of the lattice inside the shape (to within 1e-9 L): a node set by shape.
 std::vector<index_t> select_shape(const Lattice& lattice, const Shape& shape);
-// The corner nodes of the body's surface inside the shape: those with fewer than 8 present
-// modules around them (on the box's faces, or beside an absent module). A loading strip on a
-// disc, the curved face of a cylinder.
+// The corner nodes of the body's surface inside the shape: those with an absent module, or the
+// outside of the box, among the 8 modules around them; across a direction in which the body is
+// one module thick (a plate in plane strain: a slice of a longer body) the box's faces are not
+// surface. A loading strip on a disc, the curved face of a cylinder.
 std::vector<index_t> select_surface(const Lattice& lattice, const Shape& shape);
 
 struct ShapeOp {

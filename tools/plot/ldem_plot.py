@@ -397,6 +397,31 @@ def energy_png(d):
     save(fig, os.path.join(d, "energy.png"))
 
 
+def probes_png(d, case):
+    """probes.png: each probe's column of probes.csv against time, one panel per probe."""
+    path = os.path.join(d, "probes.csv")
+    if not os.path.isfile(path):
+        return
+    rows = read_csv(path)
+    if not rows:
+        return
+    names = [k for k in rows[0] if k != "time"]
+    if not names:
+        return
+    kinds = {p["name"]: p.get("kind", "") for p in case.get("probe", [])}
+    unit = {"reaction": "N", "load": "N", "bar_force": "N"}
+    t = [float(r["time"]) * 1e3 for r in rows]
+    fig, axes = plt.subplots(len(names), 1, figsize=(7, 1.2 + 1.8 * len(names)), sharex=True,
+                             squeeze=False)
+    for ax, name in zip(axes[:, 0], names):
+        ax.plot(t, [float(r[name]) for r in rows], "k-", lw=0.9)
+        ax.set_ylabel(f"{name} [{unit.get(kinds.get(name), '')}]")
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time [ms]")
+    axes[0, 0].set_title(case.get("case", {}).get("title", ""), fontsize=9)
+    save(fig, os.path.join(d, "probes.png"))
+
+
 def fields_png(d, case):
     path = os.path.join(d, "fields.csv")
     if not os.path.isfile(path):
@@ -637,6 +662,7 @@ def main():
     cut = parse_slice(options["--slice"], case) if "--slice" in options else None
     crack_png(d, case, view, cut)
     energy_png(d)
+    probes_png(d, case)
     fields_png(d, case)
     crack_speed_png(d)
     fatigue_pngs(d, case)
