@@ -148,6 +148,15 @@ kill_after_checkpoint "$T/ckpt.toml" "$T/kill" 200
 if [ -s "$T/kill/checkpoint/state.ckpt" ] && "$LDEM" resume "$T/kill" --no-plot >/dev/null 2>"$T/stderr" &&
   cmp -s "$T/ref2/energy.csv" "$T/kill/energy.csv" && cmp -s "$T/ref2/events.csv" "$T/kill/events.csv" &&
   cmp -s "$T/ref2/probes.csv" "$T/kill/probes.csv"; then ok; else bad "resume after a hard kill: $(cat "$T/stderr")"; fi
+# The same for a shaped body (the plate with a hole, four times the tutorial's run): its mask
+# is built again from the case, and every output, snapshots and body.npy included, is the
+# uninterrupted run's.
+{ cat "$T/case.toml"; printf '\n[[geometry]]\nremove = { type = "cylinder", start = [0.14, -1, 0.05], end = [0.14, 1, 0.05], radius = 0.02 }\n'; } >"$T/holeck.toml"
+"$LDEM" run "$T/holeck.toml" --out "$T/holeref" --no-plot >/dev/null 2>&1
+kill_after_checkpoint "$T/holeck.toml" "$T/holekill" 2000
+: >"$T/stderr"
+if [ -s "$T/holekill/checkpoint/state.ckpt" ] && "$LDEM" resume "$T/holekill" --no-plot >/dev/null 2>"$T/stderr" &&
+  /usr/bin/python3 "$SRC/tests/compare_runs.py" "$T/holeref" "$T/holekill" >/dev/null; then ok; else bad "shaped body resumed after a hard kill: $(cat "$T/stderr")"; fi
 # The fatigue law (law = "bilinear_fatigue"): the tutorial plate with a short life, so that its
 # bars' lives run out during the run besides those the bilinear law breaks. energy.csv has the
 # fatigue column; 1 and 2 threads, and a run killed after a checkpoint and resumed, give the
