@@ -876,5 +876,30 @@ TEST(CaseFile, RegionsFollowTheMaterialsRule) {
   EXPECT_NE(error_of(kGood + "\n[[region]]\nE = 1e9\n").find("region[0].shape"), std::string::npos);
 }
 
+// A pre-crack across a shaped body cuts its present bars only (the box's bars in a hole have no
+// stiffness to cut), and the resolved case counts those.
+TEST(CaseFile, APrecrackAcrossAHoleCutsPresentBarsOnly) {
+  const std::string path = test_case_path();
+  std::ofstream(path) << kGood + R"(
+[[geometry]]
+remove = { type = "box", min = [0.0, -1, 0.0], max = [0.02, 1, 0.04] }
+
+[[precrack]]
+name = "cut"
+origin = [-0.001, -0.001, 0.0225]
+edge1 = [0.05, 0.0, 0.0]
+edge2 = [0.0, 0.02, 0.0]
+)";
+  const BuiltCase c = build_case(path);
+  const Lattice& lat = c.sim->lattice();
+  ASSERT_FALSE(c.precracked.empty());
+  for (const index_t b : c.precracked)
+    EXPECT_TRUE(lat.bar_present(b)) << b;
+  // The plane z = 0.0225 crosses the modules of layer k = 2; only the 2 columns x >= 0.02
+  // are present there: their EdgeZ bars (3 x 2), centre bars from layer 1 to 2 (0: layer 1's
+  // modules at i = 2, 3 are present, so 2), and the diagonals of the upper half (4 x 2).
+  EXPECT_EQ(c.precracked.size(), 6u + 2 + 8);
+}
+
 } // namespace
 } // namespace ldem

@@ -208,7 +208,7 @@ std::vector<double> DistributedBody::field_rows(index_t stride) {
   std::vector<double> rows;
   for (index_t b = 0; b < local.num_bars(); ++b) {
     const index_t g = global_bar(run_->subdomain(), local, whole, b);
-    if (g % stride != 0 || !run_->owns_bar(b))
+    if (g % stride != 0 || !run_->owns_bar(b) || !whole.bar_present(g))
       continue;
     const BarTable::Properties p = run_->sim().table().properties(local, b);
     rows.insert(rows.end(), {static_cast<double>(g), p.E, p.Gf, p.e_p, p.e_r});

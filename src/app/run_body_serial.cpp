@@ -88,6 +88,8 @@ std::vector<double> SerialBody::field_rows(index_t stride) {
   const Lattice& whole = lattice();
   std::vector<double> rows;
   for (index_t b = 0; b < whole.num_bars(); b += stride) {
+    if (!whole.bar_present(b)) // a shaped body's box outside it
+      continue;
     const BarTable::Properties p = c_.sim->table().properties(whole, b);
     rows.insert(rows.end(), {static_cast<double>(b), p.E, p.Gf, p.e_p, p.e_r});
   }

@@ -88,6 +88,8 @@ CutResult cut_bars(const Lattice& lat, const Rectangle& rect, bool nudge) {
                                    rect.name));
   }
   for (index_t bar = 0; bar < lat.num_bars(); ++bar) {
+    if (!lat.bar_present(bar)) // a shaped body's box outside it: nothing to cut
+      continue;
     const auto [a, b] = lat.bar_nodes(bar);
     const Vec3 xa = lat.position(a), xb = lat.position(b);
     const double sa = plane.distance(xa), sb = plane.distance(xb);
@@ -116,7 +118,7 @@ std::vector<index_t> connected_components(const Lattice& lat, const std::vector<
     return x;
   };
   for (index_t bar = 0; bar < lat.num_bars(); ++bar) {
-    if (std::binary_search(removed.begin(), removed.end(), bar))
+    if (std::binary_search(removed.begin(), removed.end(), bar) || !lat.bar_present(bar))
       continue;
     const auto [a, b] = lat.bar_nodes(bar);
     const index_t ra = find(a), rb = find(b);

@@ -27,8 +27,9 @@ struct CutResult {
 // A rectangle that cuts no bar (outside the body) is refused too.
 CutResult cut_bars(const Lattice& lattice, const Rectangle& rect, bool nudge);
 
-// Connected components of the graph of nodes joined by the bars not in `removed`
-// (sorted). Returns one label per node, labels 0..count-1 in order of first node.
+// Connected components of the graph of nodes joined by the present bars not in `removed`
+// (sorted). Returns one label per node, labels 0..count-1 in order of first node (a shaped
+// body's absent nodes are components of their own).
 std::vector<index_t> connected_components(const Lattice& lattice,
                                           const std::vector<index_t>& removed, index_t* count);
 
