@@ -6,7 +6,9 @@
 #include "util/error.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <gtest/gtest.h>
+#include <memory>
 
 namespace ldem::testing {
 namespace {
@@ -74,6 +76,38 @@ TEST(Subdomain, OwnerRankIsTheSubdomainThatOwns) {
               << g.py << " x " << g.pz << ", (j, k) = (" << j << ", " << k << ")";
       }
   }
+}
+
+// A shaped body's cuts balance its present modules: a wedge of 20 x 1 x 20 modules whose layer
+// k holds k + 1 present modules; two parts along z split them at the layer where the sum reaches
+// half (k = 14: 1 + ... + 14 = 105 of 210), not at 10. Every part keeps at least one layer, and
+// owner_rank agrees with the cuts.
+TEST(Subdomain, ShapedBodiesAreCutToShareThePresentModules) {
+  Lattice lat(20, 1, 20, 1.0);
+  auto mask = std::make_shared<std::vector<std::uint8_t>>(20 * 20, 0);
+  for (index_t k = 0; k < 20; ++k)
+    for (index_t i = 0; i <= k; ++i)
+      (*mask)[i + 20 * k] = 1;
+  lat.set_modules(mask);
+  const Subdomain lower = make_subdomain(lat, ProcessGrid{1, 2}, 0);
+  const Subdomain upper = make_subdomain(lat, ProcessGrid{1, 2}, 1);
+  EXPECT_EQ(lower.z.m0, 0u);
+  EXPECT_EQ(lower.z.m1, 14u); // sum of (k + 1) for k < 14: 105, half of 210
+  EXPECT_EQ(upper.z.m0, 14u);
+  EXPECT_EQ(upper.z.m1, 20u);
+  for (index_t k = 0; k <= 20; ++k)
+    EXPECT_EQ(owner_rank(lower, 0, k), k < 14 ? 0 : 1) << k;
+  // Weights all in the last layer: every part still keeps a layer.
+  std::vector<std::uint64_t> w(6, 0);
+  w[5] = 10;
+  for (int c = 0; c < 4; ++c) {
+    const AxisPart a = split_axis(6, 4, c, &w);
+    EXPECT_GE(a.m1, a.m0 + 1) << c;
+  }
+  EXPECT_EQ(split_axis(6, 4, 3, &w).m1, 6u);
+  // A box is cut as before.
+  const Subdomain box = make_subdomain(Lattice(20, 1, 20, 1.0), ProcessGrid{1, 2}, 0);
+  EXPECT_EQ(box.z.m1, 10u);
 }
 
 // The spans that carry states between the subdomains and the whole body (snapshots,

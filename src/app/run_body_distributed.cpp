@@ -82,7 +82,7 @@ void close_list(std::vector<double>& out, std::size_t at) {
 DistributedBody::DistributedBody(BuiltCase& c, ProcessGrid grid, int rank)
     : RunBody(c, rank), ranks_(grid.py * grid.pz) {
   const Lattice& whole = *c.lattice;
-  const Subdomain sub = make_subdomain(whole.ny(), whole.nz(), grid, rank);
+  const Subdomain sub = make_subdomain(whole, grid, rank);
   Lattice local = window_lattice(sub, whole);
   // The window's material: the body's fields evaluated at the window's bars and modules
   // (random draws by the body's numbers, correlated fields from the body's one grid), the

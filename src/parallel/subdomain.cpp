@@ -17,15 +17,9 @@ index_t part_first(index_t n, int parts, int p) {
 }
 
 // The part along an axis that owns index idx (idx == n: the last).
-int part_of(index_t idx, index_t n, int parts) {
-  int p = static_cast<int>(std::min<std::uint64_t>(
-      static_cast<std::uint64_t>(parts) - 1,
-      std::uint64_t{idx} * static_cast<std::uint64_t>(parts) / std::max<index_t>(n, 1)));
-  while (p > 0 && part_first(n, parts, p) > idx)
-    --p;
-  while (p + 1 < parts && part_first(n, parts, p + 1) <= idx)
-    ++p;
-  return p;
+int part_of(index_t idx, const AxisPart& a) {
+  const auto after = std::upper_bound(a.firsts.begin(), a.firsts.end() - 1, idx);
+  return std::clamp(static_cast<int>(after - a.firsts.begin()) - 1, 0, a.parts - 1);
 }
 
 bool fits(index_t ny, index_t nz, ProcessGrid g) {
@@ -49,15 +43,38 @@ void add_span(std::vector<Span>& spans, index_t local_first, index_t global_firs
 
 } // namespace
 
-AxisPart split_axis(index_t n, int parts, int coord) {
+AxisPart split_axis(index_t n, int parts, int coord, const std::vector<std::uint64_t>* weights) {
   if (parts < 1 || coord < 0 || coord >= parts)
     throw InputError(fmt::format("part {} of {}: no such part", coord, parts));
   AxisPart a;
   a.n = n;
   a.coord = coord;
   a.parts = parts;
-  a.m0 = part_first(n, parts, coord);
-  a.m1 = part_first(n, parts, coord + 1);
+  a.firsts.resize(static_cast<std::size_t>(parts) + 1);
+  for (int p = 0; p <= parts; ++p)
+    a.firsts[static_cast<std::size_t>(p)] = part_first(n, parts, p);
+  if (weights && weights->size() == n && parts <= static_cast<int>(n)) {
+    // Part p starts at the first layer where the weights before it reach p / parts of the
+    // whole, kept at least one layer after the part before and one layer per part after.
+    std::vector<std::uint64_t> before(std::size_t{n} + 1, 0);
+    for (index_t m = 0; m < n; ++m)
+      before[m + 1] = before[m] + (*weights)[m];
+    const std::uint64_t total = before[n];
+    if (total > 0)
+      for (int p = 1; p < parts; ++p) {
+        const std::uint64_t target =
+            (total * static_cast<std::uint64_t>(p) + static_cast<std::uint64_t>(parts) - 1) /
+            static_cast<std::uint64_t>(parts);
+        auto m = static_cast<index_t>(std::lower_bound(before.begin(), before.end(), target) -
+                                      before.begin());
+        const auto up = static_cast<std::size_t>(p);
+        m = std::max(m, a.firsts[up - 1] + 1);
+        m = std::min(m, n - static_cast<index_t>(parts - p));
+        a.firsts[up] = m;
+      }
+  }
+  a.m0 = a.firsts[static_cast<std::size_t>(coord)];
+  a.m1 = a.firsts[static_cast<std::size_t>(coord) + 1];
   a.w0 = a.below() ? a.m0 - 1 : 0;
   a.w1 = a.above() ? a.m1 + 1 : n;
   return a;
@@ -140,24 +157,46 @@ Subdomain make_subdomain(index_t ny, index_t nz, ProcessGrid grid, int rank) {
   return s;
 }
 
+Subdomain make_subdomain(const Lattice& whole, ProcessGrid grid, int rank) {
+  Subdomain s = make_subdomain(whole.ny(), whole.nz(), grid, rank);
+  if (!whole.shaped())
+    return s;
+  // The present modules of each layer along y and along z.
+  std::vector<std::uint64_t> wy(whole.ny(), 0), wz(whole.nz(), 0);
+  for (index_t k = 0; k < whole.nz(); ++k)
+    for (index_t j = 0; j < whole.ny(); ++j)
+      for (index_t i = 0; i < whole.nx(); ++i)
+        if (whole.module_present(i, j, k)) {
+          ++wy[j];
+          ++wz[k];
+        }
+  s.y = split_axis(whole.ny(), grid.py, rank % grid.py, &wy);
+  s.z = split_axis(whole.nz(), grid.pz, rank / grid.py, &wz);
+  return s;
+}
+
 Subdomain make_subdomain(index_t ny, index_t nz, int ranks, int rank) {
   return make_subdomain(ny, nz, choose_grid(ny, nz, ranks), rank);
 }
 
 std::string describe_decomposition(const Lattice& whole, ProcessGrid g) {
-  const auto sizes = [](index_t n, int parts) {
-    const index_t lo = n / static_cast<index_t>(parts);
-    const index_t hi = lo + (n % static_cast<index_t>(parts) != 0 ? 1 : 0);
+  const Subdomain any = make_subdomain(whole, g, 0);
+  const auto sizes = [](const AxisPart& a) {
+    index_t lo = a.n, hi = 0;
+    for (std::size_t p = 0; p + 1 < a.firsts.size(); ++p) {
+      lo = std::min(lo, a.firsts[p + 1] - a.firsts[p]);
+      hi = std::max(hi, a.firsts[p + 1] - a.firsts[p]);
+    }
     return lo == hi ? fmt::format("{}", lo) : fmt::format("{} to {}", lo, hi);
   };
   return fmt::format("{} processes as {} x {} boxes over y and z, each {} x {} x {} modules "
-                     "(x, y, z)",
-                     g.py * g.pz, g.py, g.pz, whole.nx(), sizes(whole.ny(), g.py),
-                     sizes(whole.nz(), g.pz));
+                     "(x, y, z){}",
+                     g.py * g.pz, g.py, g.pz, whole.nx(), sizes(any.y), sizes(any.z),
+                     whole.shaped() ? ", cut to share the present modules evenly" : "");
 }
 
 int owner_rank(const Subdomain& any, index_t j, index_t k) {
-  return part_of(j, any.y.n, any.grid.py) + any.grid.py * part_of(k, any.z.n, any.grid.pz);
+  return part_of(j, any.y) + any.grid.py * part_of(k, any.z);
 }
 
 Lattice window_lattice(const Subdomain& sub, const Lattice& whole) {

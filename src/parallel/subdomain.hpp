@@ -29,6 +29,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -40,6 +41,8 @@ struct AxisPart {
   int coord = 0, parts = 1; // this process's place along the axis, and the processes on it
   index_t m0 = 0, m1 = 0;   // owned modules
   index_t w0 = 0, w1 = 0;   // window of modules
+  std::vector<index_t>
+      firsts; // every part's first module, and n: part p owns [firsts[p], firsts[p + 1])
   bool below() const { return coord > 0; }
   bool above() const { return coord + 1 < parts; }
   index_t local_n() const { return w1 - w0; }
@@ -52,8 +55,12 @@ struct AxisPart {
   index_t corner_end() const { return above() ? m1 : n + 1; }
 };
 
-// Splits n modules into `parts` along an axis; `coord` is the process's place.
-AxisPart split_axis(index_t n, int parts, int coord);
+// Splits n modules into `parts` along an axis; `coord` is the process's place. Without
+// weights the parts hold n / parts modules each (give or take one); with weights (one per layer
+// of modules along the axis: a shaped body's present modules) the cuts balance their sums,
+// every part keeping at least one layer.
+AxisPart split_axis(index_t n, int parts, int coord,
+                    const std::vector<std::uint64_t>* weights = nullptr);
 
 // The grid of processes: Py boxes along y times Pz along z.
 struct ProcessGrid {
@@ -87,6 +94,8 @@ struct Subdomain {
 // given one (grid.py grid.pz == ranks, each axis at least one module per box).
 Subdomain make_subdomain(index_t ny, index_t nz, int ranks, int rank);
 Subdomain make_subdomain(index_t ny, index_t nz, ProcessGrid grid, int rank);
+// The same for a body: a shaped body's cuts balance its present modules along y and along z.
+Subdomain make_subdomain(const Lattice& whole, ProcessGrid grid, int rank);
 // How the processes of `grid` share the body, for the run's log: the grid and the boxes' sizes.
 std::string describe_decomposition(const Lattice& whole, ProcessGrid grid);
 // The rank that owns node or bar block (j, k) of the body.
@@ -120,7 +129,7 @@ Conditions subdomain_conditions(const Subdomain& sub, const Lattice& whole, cons
 // order, as one process sums it.
 struct EnergyRows {
   std::vector<double> elastic, damage, fatigue, bar_keys; // per bar row
-  std::vector<double> kinetic;                   // per node row
+  std::vector<double> kinetic;                            // per node row
 };
 // The order in which to visit rows whose keys are `keys` (a permutation that sorts them).
 std::vector<std::size_t> key_order(const std::vector<double>& keys);
