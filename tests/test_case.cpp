@@ -901,5 +901,45 @@ edge2 = [0.0, 0.02, 0.0]
   EXPECT_EQ(c.precracked.size(), 6u + 2 + 8);
 }
 
+// An STL surface in millimetres shapes the body ([[geometry]] type = "stl", scale = 0.001): the
+// good case's 4 x 1 x 4 plate cut to the modules whose centres lie in a box (written as 12
+// facets of an ASCII STL beside the case): 2 along x times 3 along z.
+TEST(CaseFile, AnStlSurfaceShapesTheBody) {
+  const std::string path = test_case_path();
+  {
+    std::ofstream f(std::filesystem::path(path).parent_path() / "block.stl");
+    // mm: the centres 15 and 25 along x, 15 to 35 along z (to the top face, which the good case
+    // pulls)
+    const double lo[3] = {9, -5, 9}, hi[3] = {31, 15, 45};
+    auto at = [&](int c) {
+      return fmt::format("{} {} {}", (c & 1) ? hi[0] : lo[0], (c & 2) ? hi[1] : lo[1],
+                         (c & 4) ? hi[2] : lo[2]);
+    };
+    const int quads[6][4] = {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                             {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}};
+    f << "solid block\n";
+    for (const auto& q : quads)
+      for (const std::array<int, 3> tri :
+           {std::array<int, 3>{q[0], q[1], q[2]}, std::array<int, 3>{q[0], q[2], q[3]}})
+        f << "facet normal 0 0 0\nouter loop\nvertex " << at(tri[0]) << "\nvertex " << at(tri[1])
+          << "\nvertex " << at(tri[2]) << "\nendloop\nendfacet\n";
+    f << "endsolid block\n";
+  }
+  std::ofstream(path) << kGood + R"(
+[[geometry]]
+add = { type = "stl", file = "block.stl", scale = 0.001 }
+)";
+  const BuiltCase c = build_case(path);
+  const Lattice& lat = c.sim->lattice();
+  ASSERT_TRUE(lat.shaped());
+  EXPECT_EQ(lat.num_present_modules(), 6u);
+  EXPECT_TRUE(lat.module_present(1, 0, 1));
+  EXPECT_TRUE(lat.module_present(2, 0, 3));
+  EXPECT_FALSE(lat.module_present(0, 0, 0));
+  const toml::table resolved = toml::parse(resolved_case_toml(c, body_numbers(*c.sim)));
+  EXPECT_EQ(resolved["geometry"][0]["add"]["type"].value_or(std::string()), "stl");
+  EXPECT_DOUBLE_EQ(resolved["geometry"][0]["add"]["scale"].value_or(0.0), 0.001);
+}
+
 } // namespace
 } // namespace ldem

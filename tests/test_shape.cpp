@@ -3,6 +3,7 @@
 #include "lattice/shape.hpp"
 #include "util/error.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -241,6 +242,108 @@ TEST(Shape, BadNpyMasksAreRefused) {
   std::ofstream(text) << "0 1 0\n";
   EXPECT_NE(message(text).find("without its signature"), std::string::npos);
   EXPECT_NE(message(text).find(text), std::string::npos);
+}
+
+// STL surfaces: the box [lo, hi] as 12 triangles.
+std::vector<Triangle> box_mesh(Vec3 lo, Vec3 hi) {
+  const Vec3 c[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {lo.x, hi.y, lo.z},
+                     {hi.x, hi.y, lo.z}, {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z},
+                     {lo.x, hi.y, hi.z}, {hi.x, hi.y, hi.z}};
+  const int quads[6][4] = {{0, 1, 3, 2}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                           {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 3, 7, 5}};
+  std::vector<Triangle> out;
+  for (const auto& q : quads) {
+    out.push_back({c[q[0]], c[q[1]], c[q[2]]});
+    out.push_back({c[q[0]], c[q[2]], c[q[3]]});
+  }
+  return out;
+}
+
+void write_binary_stl(const std::string& path, const std::vector<Triangle>& tris) {
+  std::ofstream f(path, std::ios::binary);
+  f << std::string(80, ' ');
+  const auto n = static_cast<std::uint32_t>(tris.size());
+  f.write(reinterpret_cast<const char*>(&n), 4);
+  for (const Triangle& t : tris) {
+    const float normal[3] = {0, 0, 0};
+    f.write(reinterpret_cast<const char*>(normal), 12);
+    for (const Vec3& v : t) {
+      const float xyz[3] = {static_cast<float>(v.x), static_cast<float>(v.y),
+                            static_cast<float>(v.z)};
+      f.write(reinterpret_cast<const char*>(xyz), 12);
+    }
+    f.write("\0\0", 2);
+  }
+}
+
+void write_ascii_stl(const std::string& path, const std::vector<Triangle>& tris) {
+  std::ofstream f(path);
+  f << "solid test\n";
+  for (const Triangle& t : tris) {
+    f << " facet normal 0 0 0\n  outer loop\n";
+    for (const Vec3& v : t)
+      f << "   vertex " << v.x << " " << v.y << " " << v.z << "\n";
+    f << "  endloop\n endfacet\n";
+  }
+  f << "endsolid test\n";
+}
+
+// A cube in a binary STL takes the modules whose centres lie in it: 3 per axis here (centres
+// 0.015, 0.025, 0.035 in [0.0149, 0.0351]). A tetrahedron in millimetres (scale 0.001) in an
+// ASCII STL takes exactly the centres with x, y, z >= 0 and x + y + z <= 0.05 (counted directly).
+TEST(Shape, StlSurfacesTakeTheModulesWhoseCentresLieInside) {
+  const std::string dir = ::testing::TempDir();
+  const std::string cube = dir + "/ldem_cube.stl", tet = dir + "/ldem_tet.stl";
+  write_binary_stl(cube, box_mesh({0.0149, 0.0149, 0.0149}, {0.0351, 0.0351, 0.0351}));
+  const std::vector<std::uint8_t> m = surface_mask(read_stl(cube), 6, 6, 6, L, cube);
+  EXPECT_EQ(std::count(m.begin(), m.end(), 1), 27);
+  EXPECT_EQ(m[1 + 6 * (1 + 6 * 1)], 1);
+  EXPECT_EQ(m[0], 0);
+  const std::vector<Triangle> t = {{Vec3{0, 0, 0}, Vec3{50, 0, 0}, Vec3{0, 50, 0}},
+                                   {Vec3{0, 0, 0}, Vec3{50, 0, 0}, Vec3{0, 0, 50}},
+                                   {Vec3{0, 0, 0}, Vec3{0, 50, 0}, Vec3{0, 0, 50}},
+                                   {Vec3{50, 0, 0}, Vec3{0, 50, 0}, Vec3{0, 0, 50}}};
+  write_ascii_stl(tet, t);
+  const std::vector<std::uint8_t> mt = surface_mask(read_stl(tet, 0.001), 6, 6, 6, L, tet);
+  int expected = 0;
+  for (int k = 0; k < 6; ++k)
+    for (int j = 0; j < 6; ++j)
+      for (int i = 0; i < 6; ++i) {
+        const double x = (i + 0.5) * L, y = (j + 0.5) * L, z = (k + 0.5) * L;
+        const bool in = x + y + z <= 0.05;
+        expected += in;
+        EXPECT_EQ(mt[static_cast<std::size_t>(i + 6 * (j + 6 * k))], in ? 1 : 0)
+            << i << " " << j << " " << k;
+      }
+  EXPECT_EQ(expected, 20); // (i + j + k + 1.5) L <= 0.05: i + j + k <= 3, C(6, 3) = 20 triples
+  std::remove(cube.c_str());
+  std::remove(tet.c_str());
+}
+
+// A surface with a hole that the rows' lines cross (a facet of a face across x missing) and
+// files that are not STL are refused.
+TEST(Shape, OpenSurfacesAndBadStlFilesAreRefused) {
+  const std::string dir = ::testing::TempDir();
+  const std::string open = dir + "/ldem_open.stl", bad = dir + "/ldem_bad.stl";
+  std::vector<Triangle> tris = box_mesh({0.0149, 0.0149, 0.0149}, {0.0351, 0.0351, 0.0351});
+  tris.erase(tris.begin() + 8); // a triangle of the face x = 0.0149
+  write_binary_stl(open, tris);
+  try {
+    surface_mask(read_stl(open), 6, 6, 6, L, open);
+    ADD_FAILURE() << "an open surface was taken";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected a closed surface"), std::string::npos)
+        << e.what();
+  }
+  std::ofstream(bad) << "not an stl file";
+  try {
+    read_stl(bad);
+    ADD_FAILURE() << "a text file was taken for an STL file";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected an STL file"), std::string::npos) << e.what();
+  }
+  std::remove(open.c_str());
+  std::remove(bad.c_str());
 }
 
 } // namespace

@@ -73,6 +73,8 @@ toml::table shape_table(const Shape& sh) {
   case Shape::Type::Mask:
     break;
   }
+  if (sh.stl)
+    return toml::table{{"type", "stl"}, {"file", sh.file}, {"scale", sh.scale}};
   return toml::table{{"type", "npy"}, {"file", sh.file}};
 }
 

@@ -89,7 +89,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"node_set", "shape", "table", "-", "", -kInf, kInf, false, false, "", "Every node inside this shape (`shape = { type = \"sphere\", centre = [...], radius = ... }`; boundaries included, to within 1e-9 L; see the shape keys below): a loading pad, a support, a gauge's region."},
     {"node_set", "surface", "bool", "false", "", -kInf, kInf, false, false, "", "With shape: only the corner nodes of the body's surface inside the shape (beside an absent module or the outside of the box; a body one module thick along an axis, a plate in plane strain, has no surface across it): a loading strip on a disc, the curved face of a cylinder."},
 
-    {"shape", "type", "string", "required", "", -kInf, kInf, false, false, "\"box\", \"cylinder\", \"sphere\", \"half_space\", \"npy\"", "The kind of solid; only its own keys apply. \"npy\" (in [[geometry]] only): the modules a NumPy file marks."},
+    {"shape", "type", "string", "required", "", -kInf, kInf, false, false, "\"box\", \"cylinder\", \"sphere\", \"half_space\", \"npy\", \"stl\"", "The kind of solid; only its own keys apply. \"npy\" and \"stl\" (in [[geometry]] only): the modules a NumPy file marks, or whose centres lie inside the closed surface of an STL file."},
     {"shape", "min", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "box: the corner with the smallest coordinates (before a turn)."},
     {"shape", "max", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "box: the opposite corner; at or above min on every axis."},
     {"shape", "axis", "string", "-", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "box, with angle: the box is turned about the axis along this direction through its centre."},
@@ -100,7 +100,8 @@ const std::vector<KeyDecl>& case_keys() {
     {"shape", "centre", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "sphere: the centre."},
     {"shape", "point", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "half_space: a point on its boundary plane."},
     {"shape", "normal", "[3 floats]", "-", "", -kInf, kInf, false, false, "", "half_space: a vector out of the plane towards the inside (not zero): the points x with (x - point) . normal >= 0."},
-    {"shape", "file", "string", "-", "", -kInf, kInf, false, false, "", "npy: a NumPy .npy array of shape (nx, ny, nz), indexed [i, j, k] (C or Fortran order), of booleans, integers or floats: the modules where it is not zero; a relative path is from the case file's folder."},
+    {"shape", "scale", "float", "1", "", 0, kInf, true, false, "", "stl: the factor from the file's units to metres (0.001 for millimetres)."},
+    {"shape", "file", "string", "-", "", -kInf, kInf, false, false, "", "stl: an STL file (binary or ASCII) of a closed surface. npy: a NumPy .npy array of shape (nx, ny, nz), indexed [i, j, k] (C or Fortran order), of booleans, integers or floats: the modules where it is not zero; a relative path is from the case file's folder."},
 
     {"fixed", "set", "string", "required", "", -kInf, kInf, false, false, "", "Node set whose DOF are held at zero displacement."},
     {"fixed", "dofs", "string", "\"xyz\"", "", -kInf, kInf, false, false, "letters x, y, z", "Which DOF."},

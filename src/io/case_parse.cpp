@@ -405,6 +405,7 @@ public:
   // from a NumPy file (`type = "npy"`).
   struct MaskGrid {
     index_t nx, ny, nz;
+    double L;
     std::filesystem::path folder;
   };
   Shape shape(const toml::table& t, const char* key, const std::string& where,
@@ -415,7 +416,7 @@ public:
       fail(n ? n : &t, name,
            fmt::format("expected a shape, {{ type = \"box\", \"cylinder\", \"sphere\"{}, "
                        "... }}, got {}",
-                       grid ? ", \"half_space\" or \"npy\"" : " or \"half_space\"",
+                       grid ? ", \"half_space\", \"npy\" or \"stl\"" : " or \"half_space\"",
                        n ? describe(*n) : "none"));
     const toml::table& st = *n->as_table();
     const std::string w = name + ".";
@@ -463,12 +464,18 @@ public:
       if (out.a.x == out.b.x && out.a.y == out.b.y && out.a.z == out.b.z)
         fail(st.get("end"), w + "end",
              "expected an end apart from start (the axis), got the same point");
-    } else if (type == "npy") {
+    } else if (type == "npy" || type == "stl") {
       if (!grid)
         fail(st.get("type"), w + "type",
-             "expected \"box\", \"cylinder\", \"sphere\" or \"half_space\" (a mask of "
-             "modules, \"npy\", shapes the body only: [[geometry]]), got \"npy\"");
-      only(st, w, what, {"type", "file"});
+             fmt::format("expected \"box\", \"cylinder\", \"sphere\" or \"half_space\" (a "
+                         "mask of modules, \"npy\" or \"stl\", shapes the body only: "
+                         "[[geometry]]), got \"{}\"",
+                         type));
+      const bool stl = type == "stl";
+      if (stl)
+        only(st, w, what, {"type", "file", "scale"});
+      else
+        only(st, w, what, {"type", "file"});
       out.type = Shape::Type::Mask;
       const auto file = opt_string(st, "shape", "file", w);
       if (!file)
@@ -476,13 +483,18 @@ public:
       std::filesystem::path p(*file);
       if (p.is_relative())
         p = grid->folder / p;
+      const double scale = stl ? get_float(st, "shape", "scale", w) : 1.0;
       try {
         out.mask = std::make_shared<const std::vector<std::uint8_t>>(
-            read_npy_mask(p.string(), grid->nx, grid->ny, grid->nz));
+            stl ? surface_mask(read_stl(p.string(), scale), grid->nx, grid->ny, grid->nz, grid->L,
+                               p.string())
+                : read_npy_mask(p.string(), grid->nx, grid->ny, grid->nz));
       } catch (const InputError& e) {
         fail(st.get("file"), w + "file", e.what());
       }
       out.file = *file;
+      out.scale = scale;
+      out.stl = stl;
     } else if (type == "sphere") {
       only(st, w, what, {"type", "centre", "radius"});
       out.type = Shape::Type::Sphere;
@@ -751,7 +763,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   {
     // The body's modules: [[geometry]] add or remove, in order.
     const auto ops = array("geometry");
-    const Reader::MaskGrid grid{c.nx, c.ny, c.nz, std::filesystem::path(name).parent_path()};
+    const Reader::MaskGrid grid{c.nx, c.ny, c.nz, c.L, std::filesystem::path(name).parent_path()};
     for (std::size_t i = 0; i < ops.size(); ++i) {
       const toml::table& t = *ops[i];
       const std::string w = fmt::format("geometry[{}].", i);

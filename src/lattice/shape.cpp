@@ -13,6 +13,8 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <sstream>
+#include <string>
 
 namespace ldem {
 
@@ -378,6 +380,138 @@ std::vector<std::uint8_t> read_npy_mask(const std::string& path, index_t nx, ind
         out[i + std::size_t{nx} * (j + std::size_t{ny} * k)] = on ? 1 : 0;
       }
   return out;
+}
+
+std::vector<Triangle> read_stl(const std::string& path, double scale) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
+    throw InputError(fmt::format("{}: expected an STL file, got something else (a folder, a "
+                                 "device)",
+                                 path));
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    throw InputError(fmt::format("{}: cannot open the STL file", path));
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<Triangle> out;
+  auto finite = [&](const Triangle& t) {
+    for (const Vec3& v : t)
+      if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+        throw InputError(
+            fmt::format("{}: triangle {} has a vertex that is not a number", path, out.size()));
+  };
+  // Binary: an 80-byte header, a uint32 count, 50 bytes per triangle (normal, 3 vertices as
+  // float32, a uint16). Taken as binary when the size matches its count, whatever the header
+  // says (binary files often begin with "solid" too).
+  if (bytes.size() >= 84) {
+    std::uint32_t n = 0;
+    std::memcpy(&n, bytes.data() + 80, 4);
+    if (bytes.size() == 84 + 50ull * n) {
+      out.reserve(n);
+      for (std::uint32_t t = 0; t < n; ++t) {
+        const char* p = bytes.data() + 84 + 50ull * t + 12;
+        Triangle tri;
+        for (int v = 0; v < 3; ++v) {
+          float c[3];
+          std::memcpy(c, p + 12 * v, 12);
+          tri[static_cast<std::size_t>(v)] = {c[0] * scale, c[1] * scale, c[2] * scale};
+        }
+        finite(tri);
+        out.push_back(tri);
+      }
+      if (out.empty())
+        throw InputError(fmt::format("{}: the STL file holds no triangle", path));
+      return out;
+    }
+  }
+  // ASCII: "vertex x y z" lines, three per facet.
+  if (bytes.compare(0, 5, "solid") != 0)
+    throw InputError(fmt::format("{}: expected an STL file (binary, or ASCII beginning with "
+                                 "\"solid\"), got neither",
+                                 path));
+  std::istringstream text(bytes);
+  std::string word;
+  Triangle tri;
+  int v = 0;
+  while (text >> word) {
+    if (word != "vertex")
+      continue;
+    double x, y, z;
+    if (!(text >> x >> y >> z))
+      throw InputError(
+          fmt::format("{}: a vertex of facet {} is not three numbers", path, out.size()));
+    tri[static_cast<std::size_t>(v)] = {x * scale, y * scale, z * scale};
+    if (++v == 3) {
+      finite(tri);
+      out.push_back(tri);
+      v = 0;
+    }
+  }
+  if (v != 0)
+    throw InputError(fmt::format("{}: the last facet has {} vertices, expected 3", path, v));
+  if (out.empty())
+    throw InputError(fmt::format("{}: the STL file holds no triangle", path));
+  return out;
+}
+
+std::vector<std::uint8_t> surface_mask(const std::vector<Triangle>& triangles, index_t nx,
+                                       index_t ny, index_t nz, double L, const std::string& what) {
+  // The rows' lines: y = (j + 1/2 + dy) L, z = (k + 1/2 + dz) L, off the centres by amounts no
+  // mesh on a grid of round numbers meets exactly.
+  const double dy = 1.234567e-7, dz = 2.718281e-7;
+  std::vector<std::vector<std::uint32_t>> bins(std::size_t{ny} * nz);
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    const Triangle& tr = triangles[t];
+    const double y0 = std::min({tr[0].y, tr[1].y, tr[2].y}),
+                 y1 = std::max({tr[0].y, tr[1].y, tr[2].y});
+    const double z0 = std::min({tr[0].z, tr[1].z, tr[2].z}),
+                 z1 = std::max({tr[0].z, tr[1].z, tr[2].z});
+    // Rows whose line may meet the triangle's box.
+    const auto first = [](double lo, index_t n) {
+      return static_cast<index_t>(std::clamp(std::floor(lo - 0.5), 0.0, static_cast<double>(n)));
+    };
+    const auto last = [](double hi, index_t n) {
+      return static_cast<index_t>(std::clamp(std::ceil(hi - 0.5), 0.0, static_cast<double>(n)));
+    };
+    for (index_t k = first(z0 / L, nz); k < std::min(last(z1 / L, nz) + 1, nz); ++k)
+      for (index_t j = first(y0 / L, ny); j < std::min(last(y1 / L, ny) + 1, ny); ++j)
+        bins[j + std::size_t{ny} * k].push_back(static_cast<std::uint32_t>(t));
+  }
+  std::vector<std::uint8_t> mask(std::size_t{nx} * ny * nz, 0);
+  std::vector<double> xs;
+  for (index_t k = 0; k < nz; ++k)
+    for (index_t j = 0; j < ny; ++j) {
+      const double y = (j + 0.5 + dy) * L, z = (k + 0.5 + dz) * L;
+      xs.clear();
+      for (const std::uint32_t t : bins[j + std::size_t{ny} * k]) {
+        const Triangle& tr = triangles[t];
+        // Barycentric coordinates of (y, z) in the triangle's projection on the y-z plane.
+        const double ay = tr[0].y, az = tr[0].z;
+        const double by = tr[1].y - ay, bz = tr[1].z - az, cy = tr[2].y - ay, cz = tr[2].z - az;
+        const double det = by * cz - bz * cy;
+        if (det == 0.0)
+          continue; // the triangle is edge-on to the line: it holds no crossing
+        const double py = y - ay, pz = z - az;
+        const double u = (py * cz - pz * cy) / det, w = (by * pz - bz * py) / det;
+        if (u < 0.0 || w < 0.0 || u + w > 1.0)
+          continue;
+        xs.push_back(tr[0].x + u * (tr[1].x - tr[0].x) + w * (tr[2].x - tr[0].x));
+      }
+      if (xs.size() % 2 != 0)
+        throw InputError(fmt::format(
+            "{}: expected a closed surface, got one that the line along x through the centres "
+            "of module row (j, k) = ({}, {}) crosses {} times (an odd number: a hole in the "
+            "surface, or facets missing or doubled)",
+            what, j, k, xs.size()));
+      std::sort(xs.begin(), xs.end());
+      std::size_t before = 0;
+      for (index_t i = 0; i < nx; ++i) {
+        const double x = (i + 0.5) * L;
+        while (before < xs.size() && xs[before] < x)
+          ++before;
+        mask[i + std::size_t{nx} * (j + std::size_t{ny} * k)] = before % 2;
+      }
+    }
+  return mask;
 }
 
 } // namespace ldem

@@ -4,6 +4,7 @@
 
 #include "lattice/lattice.hpp"
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -27,7 +28,9 @@ struct Shape {
   Vec3 normal;
   // Mask: one value per module of the grid, i fastest (i + nx (j + ny k)); nonzero is inside.
   std::shared_ptr<const std::vector<std::uint8_t>> mask;
-  std::string file; // the mask's file as the case gives it
+  std::string file;   // the mask's file as the case gives it
+  bool stl = false;   // the mask is of the closed surface in an STL file (file),
+  double scale = 1.0; // its vertices times scale in metres
 
   // Whether p lies in the shape grown by `tol` (boundaries included). Not for masks.
   bool contains(Vec3 p, double tol = 0.0) const;
@@ -76,5 +79,19 @@ ModuleMask build_module_mask(index_t nx, index_t ny, index_t nz, double L,
 // InputError naming the file and what is wrong (not an .npy file, its shape, its type).
 std::vector<std::uint8_t> read_npy_mask(const std::string& path, index_t nx, index_t ny,
                                         index_t nz);
+
+// The triangles of an STL file (binary or ASCII), each vertex times `scale` (0.001 for a file
+// in millimetres). Throws InputError naming the file and what is wrong.
+using Triangle = std::array<Vec3, 3>;
+std::vector<Triangle> read_stl(const std::string& path, double scale = 1.0);
+
+// The modules of the grid (nx x ny x nz, edge L) whose centres lie inside the closed surface
+// the triangles make, one byte per module, i fastest: along each row of module centres (a line
+// along x, moved off the centres by a few 1e-7 L so that it meets no edge or vertex of an
+// axis-aligned mesh) the crossings with the surface, sorted; a centre is inside when an odd
+// number of them lie before it. Throws InputError when a row crosses the surface an odd number
+// of times (the surface is not closed where the row's line passes), naming `what`.
+std::vector<std::uint8_t> surface_mask(const std::vector<Triangle>& triangles, index_t nx,
+                                       index_t ny, index_t nz, double L, const std::string& what);
 
 } // namespace ldem
