@@ -89,10 +89,13 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
     if (!v->empty() && v->size() != nb)
       throw InputError(
           fmt::format("material fields: expected one value per bar ({}), got {}", nb, v->size()));
-  // A shaped body keeps per-bar stiffnesses: its area factors vary along the rows, and its
-  // absent bars have none.
+  // A shaped body of one material keeps its constants per family: the step takes its area
+  // factors from a byte per bar (StepLayout::bar_code) and never changes the state of its
+  // absent bars. One with a fatigue life keeps them per bar (the cycle count reads no codes):
+  // its absent bars have no stiffness and strengths no strain reaches.
   const bool varies = !fields.E.empty() || !fields.Gf.empty() || !fields.e_p.empty() ||
-                      !fields.e_r.empty() || !fields.R_f.empty() || lat.shaped();
+                      !fields.e_r.empty() || !fields.R_f.empty() ||
+                      (lat.shaped() && spec.fatigue.has_value());
   const bool er_given = spec.e_r.has_value() || !fields.e_r.empty();
   ranges_.rule = fmt::format(
       "e_p {}; {}", spec.e_p || !fields.e_p.empty() ? "given" : "from R_f and Gf (eq. 7)",
@@ -142,7 +145,7 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
       account(body_bar(fi.offset), fi.kind, kr, critical_length(Gf_eff, spec.E, e_p, ratio_n));
       if (kr < 1.0)
         for (index_t b = fi.offset; b < fi.offset + fi.count(); ++b)
-          s.bars_below_one += counted(b);
+          s.bars_below_one += counted(b) && lat.bar_present(b);
     }
   } else {
     k_.resize(nb);

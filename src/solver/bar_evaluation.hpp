@@ -18,19 +18,20 @@ namespace ldem {
 // last turning point and extreme (kLife, kReleased, kDissipatedBefore, kTurn, kExtreme), and
 // has count(), counting() and release() (bar_law_fatigue.hpp).
 template <class Law>
-concept kCountsCycles =
-    requires(const Law law, typename Law::State s, double x, double& t, Stretch g) {
-      { Law::count(Law::fatigue_constants(std::declval<const BarTable&>(), 0), x, t, t) }
-          -> std::same_as<double>;
-      { law.counting(s) } -> std::same_as<bool>;
-      law.release(x, x, x, g, s).released;
-      Law::kLife;
-      Law::kReleased;
-      Law::kDissipatedBefore;
-      Law::kTurn;
-      Law::kExtreme;
-      Law::kNewLife;
-    };
+concept kCountsCycles = requires(const Law law, typename Law::State s, double x, double& t,
+                                 Stretch g) {
+  {
+    Law::count(Law::fatigue_constants(std::declval<const BarTable&>(), 0), x, t, t)
+    } -> std::same_as<double>;
+  { law.counting(s) } -> std::same_as<bool>;
+  law.release(x, x, x, g, s).released;
+  Law::kLife;
+  Law::kReleased;
+  Law::kDissipatedBefore;
+  Law::kTurn;
+  Law::kExtreme;
+  Law::kNewLife;
+};
 
 // The strain up to which a pristine bar of each family stays a linear spring, for the
 // family's constants (the intact fast path's, which is off where the material varies per bar).
@@ -132,10 +133,13 @@ index_t visit_law_row(const SimulationCore& core, std::size_t r, F&& lane) {
   const double l0 = fi.l0, inv_l0 = 1.0 / fi.l0, kl0 = mat.k * fi.l0;
   const double inner = row.factor, end = row.end_factor;
   const double d0x = fi.d0.x, d0y = fi.d0.y, d0z = fi.d0.z;
+  // A shaped body's area factors per bar (StepLayout::bar_code).
+  const std::uint8_t* __restrict code =
+      core.layout.coded() ? core.layout.bar_code.data() + b0 : nullptr;
   for (index_t i = 0; i < n; ++i) {
     const Stretch g = stretch(d0x + (ubx[i] - uax[i]), d0y + (uby[i] - uay[i]),
                               d0z + (ubz[i] - uaz[i]), l0, inv_l0);
-    const double factor = (i == 0 || i + 1 == n) ? end : inner;
+    const double factor = code ? code[i] * 0.25 : (i == 0 || i + 1 == n) ? end : inner;
     const Law law = Law::template at<PerBar>(constants, i);
     lane(i, g, law, Law::read(states.data(), i), PerBar ? kb[i] : mat.k * factor,
          PerBar ? kb[i] * l0 : kl0 * factor);
@@ -253,14 +257,18 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
     const double peak = Law::row(core.table, row.family, b0).family.elastic_limit() * fi.l0;
     // (The forces in a loop of doubles alone, which GCC vectorises; the bytes apart.)
     double* __restrict f = force.data() + b0;
+    const std::uint8_t* __restrict code =
+        core.layout.coded() ? core.layout.bar_code.data() + b0 : nullptr;
     int past = 0;
 #pragma omp simd reduction(+ : past)
     for (index_t i = 0; i < n; ++i) {
       const double dl = stretch(fi.d0.x + (ubx[i] - uax[i]), fi.d0.y + (uby[i] - uay[i]),
                                 fi.d0.z + (ubz[i] - uaz[i]), l0, inv_l0)
                             .dl;
-      f[i] = (i == 0 || i + 1 == n ? end : inner) * dl;
-      past += dl > peak ? 1 : 0;
+      // (A shaped body's bars: k times the area factor of each; an absent bar is never past.)
+      const double k = code ? inner * (code[i] * 0.25) : i == 0 || i + 1 == n ? end : inner;
+      f[i] = k * dl;
+      past += k != 0.0 && dl > peak ? 1 : 0;
     }
     core.snapshot_by_law[r] = past > 0;
     std::fill_n(damage.begin() + b0, n, 0.0);

@@ -24,13 +24,15 @@ struct RowView {
 // is pristine (its state is not read). With `Energy`, also the sum over the row of each bar's
 // elastic energy into *energy, from its force over length times w, w = 1 for inner bars and
 // `end_scale` for the first and last (the factor the caller applies to their forces
-// afterwards). (Inlined where it is called, as intact_row_kernel.)
-template <class Law, bool PerBar, bool Intact, bool Energy = false>
+// afterwards). `Coded`: a shaped body's row, each bar's force and energy times its area factor
+// code / 4 (StepLayout::bar_code), its absent bars (code 0) with s = 0 and no state change.
+// (Inlined where it is called, as intact_row_kernel.)
+template <class Law, bool PerBar, bool Intact, bool Energy = false, bool Coded = false>
 [[gnu::always_inline]] inline bool
 bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
                const std::array<const double*, Law::kStateArrays.size()>& states, Vec3 d0,
                double l0, double k_row, const double* __restrict k_bar, double end_scale = 1.0,
-               double* energy = nullptr) {
+               double* energy = nullptr, const std::uint8_t* __restrict code = nullptr) {
   const double inv_l0 = 1.0 / l0;
   int past = 0; // an int, not a bool: GCC vectorises only arithmetic reductions
   double sum = 0.0;
@@ -57,11 +59,20 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
                               d0.z + (ubz[i] - uaz[i]), l0, inv_l0);
     const Law law = Law::template at<PerBar>(row, i);
     const typename Law::State s = Intact ? law.initial() : Law::read(st.data(), i);
-    const double si = law.force_over_length(PerBar ? k_bar[i] : k_row, g, s);
+    double si = law.force_over_length(PerBar ? k_bar[i] : k_row, g, s);
+    double w = i == 0 || i + 1 == nn ? end_scale : 1.0;
+    int present = 1;
+    if constexpr (Coded) {
+      // (Without a branch, which would keep GCC from vectorising the loop: an absent bar's s is
+      // its finite force times 0.)
+      present = code[i] != 0;
+      si *= code[i] * 0.25;
+      w = 1.0; // (the area factor is in si)
+    }
     sr[i] = si;
-    Term t{law.changes(g.e, s) ? 1 : 0, 0.0};
+    Term t{present * (law.changes(g.e, s) ? 1 : 0), 0.0};
     if constexpr (Energy)
-      t.energy = law.elastic_energy((i == 0 || i + 1 == nn ? end_scale : 1.0) * si, g, s);
+      t.energy = law.elastic_energy(w * si, g, s);
     return t;
   };
   if constexpr (Energy) {
@@ -99,10 +110,14 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
 // last (their area factor over the row's). l2_max: the largest l^2 of the row's bars.
 // (Inlined where it is called: GCC 12 does not vectorise the portable loop's reductions in a
 // copy of its own.)
+// `code`: a shaped body's row (StepLayout::bar_code): each bar's force and energy times its
+// area factor code / 4 (as the node kernel's times_quarters has it, the same bits), its absent
+// bars with s = 0, neither tested nor measured.
 template <bool Energy>
 [[gnu::always_inline]] inline bool
 intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_lim,
-                  double end_scale, double* energy, double& l2_max) {
+                  double end_scale, double* energy, double& l2_max,
+                  const std::uint8_t* __restrict code = nullptr) {
   // Slightly below the exact threshold, so that a bar at e_lim to within rounding is handed to
   // the general kernel, whose strain test is the reference.
   const double lp2 = l0 * l0 * (1.0 + e_lim) * (1.0 + e_lim) * (1.0 - 1e-12);
@@ -124,7 +139,18 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
                   dz = _mm512_add_pd(vz, uz);
     const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
     const __m512d y = inv_sqrt(l2);
-    const __m512d s = _mm512_fnmadd_pd(vkl0, y, vk);
+    __m512d s = _mm512_fnmadd_pd(vkl0, y, vk);
+    if (code) {
+      __mmask8 present = 0;
+      const __m512d f = code_factors(code + i, Tail ? n - i : 8, present);
+      s = _mm512_maskz_mul_pd(present, s, f);
+      _mm512_mask_storeu_pd(r.s + i, m, s);
+      past |= _mm512_mask_cmp_pd_mask(m & present, l2, vlp2, _CMP_GT_OQ);
+      top = _mm512_mask_max_pd(top, m & present, top, l2);
+      if constexpr (Energy)
+        acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, m & present, f);
+      return;
+    }
     if constexpr (Tail) {
       _mm512_mask_storeu_pd(r.s + i, m, s);
       past |= _mm512_mask_cmp_pd_mask(m, l2, vlp2, _CMP_GT_OQ);
@@ -167,12 +193,14 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
     const double dx = d0.x + ux, dy = d0.y + uy, dz = d0.z + uz;
     const double l2 = dx * dx + dy * dy + dz * dz;
     const double l = std::sqrt(l2);
-    r.s[i] = k - k * l0 / l;
-    Term t{l2 > lp2 ? 1 : 0, 0.0};
+    const bool present = code == nullptr || code[i] != 0;
+    const double f = code ? code[i] * 0.25 : 1.0;
+    r.s[i] = present ? (k - k * l0 / l) * f : 0.0;
+    Term t{present && l2 > lp2 ? 1 : 0, 0.0};
     if constexpr (Energy) { // as above
       const double dl =
           (ux * (ux + 2 * d0.x) + uy * (uy + 2 * d0.y) + uz * (uz + 2 * d0.z)) / (l + l0);
-      t.energy = (i == 0 || i + 1 == n ? end_scale : 1.0) * dl * dl;
+      t.energy = present ? (code ? f : i == 0 || i + 1 == n ? end_scale : 1.0) * dl * dl : 0.0;
     }
     return t;
   };
@@ -237,20 +265,31 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     const BarRow& row = core.layout.bar_rows[r];
     const FamilyInfo& fi = core.lat.family(row.family);
     const FamilyMaterial& mat = core.table.family(row.family);
-    const index_t b0 = core.first_bar(r);
-    const std::size_t a0 = row.a_slot, c0 = row.b_slot;
+    // The row's bars [p0, p1): all of them in a box, in a shaped body from the vector of its
+    // first present bar to its last (none in a row of absent bars).
+    const index_t p0 = row.p0, n = row.p1 - row.p0;
+    if (n == 0) {
+      core.row_ratio[r] = 0.0;
+      if (energies)
+        core.energy_rows_u[r] = 0.0;
+      continue;
+    }
+    const index_t b0 = core.first_bar(r) + p0;
+    const std::size_t a0 = row.a_slot + static_cast<std::size_t>(p0),
+                      c0 = row.b_slot + static_cast<std::size_t>(p0);
     const RowView v{core.ux.data() + a0,
                     core.uy.data() + a0,
                     core.uz.data() + a0,
                     core.ux.data() + c0,
                     core.uy.data() + c0,
                     core.uz.data() + c0,
-                    s_plane + fi.plane_offset + std::size_t{fi.plane_stride} * row.j};
+                    s_plane + fi.plane_offset + std::size_t{fi.plane_stride} * row.j +
+                        static_cast<std::size_t>(p0)};
+    const std::uint8_t* code = core.layout.coded() ? core.layout.bar_code.data() + b0 : nullptr;
     const typename Law::Row constants = Law::row(core.table, row.family, b0);
     const std::array<double*, kStates> states = core.state_rows<kStates>(b0);
     std::array<const double*, kStates> read_states{};
     std::copy(states.begin(), states.end(), read_states.begin());
-    const index_t n = fi.ni;
     const bool intact = !core.row_damaged[r];
     bool past;
     // On a report step the kernels also give the row's elastic energy, its displacements
@@ -261,6 +300,12 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     const auto general = [&](auto per_bar_c, auto intact_c) {
       constexpr bool P = decltype(per_bar_c)::value, I = decltype(intact_c)::value;
       const double* kr = P ? kb + b0 : nullptr;
+      if (!P && code)
+        return energies
+                   ? bar_row_kernel<Law, P, I, true, true>(n, v, constants, read_states, fi.d0,
+                                                           fi.l0, k, kr, scale, &law_sum, code)
+                   : bar_row_kernel<Law, P, I, false, true>(n, v, constants, read_states, fi.d0,
+                                                            fi.l0, k, kr, scale, nullptr, code);
       return energies
                  ? bar_row_kernel<Law, P, I, true>(n, v, constants, read_states, fi.d0, fi.l0, k,
                                                    kr, scale, &law_sum)
@@ -274,11 +319,10 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     } else {
       double l2_max = kUnknown;
       const double e_lim = constants.family.elastic_limit();
-      past =
-          intact &&
-          (energies
-               ? intact_row_kernel<true>(n, v, fi.d0, fi.l0, k, e_lim, scale, &intact_sum, l2_max)
-               : intact_row_kernel<false>(n, v, fi.d0, fi.l0, k, e_lim, 1.0, nullptr, l2_max));
+      past = intact && (energies ? intact_row_kernel<true>(n, v, fi.d0, fi.l0, k, e_lim, scale,
+                                                           &intact_sum, l2_max, code)
+                                 : intact_row_kernel<false>(n, v, fi.d0, fi.l0, k, e_lim, 1.0,
+                                                            nullptr, l2_max, code));
       core.row_ratio[r] = l2_max * (core.layout.row_inv_lp[r] * core.layout.row_inv_lp[r]);
       by_law = !intact || past;
       if (by_law)
@@ -299,6 +343,8 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     // changes no force at the strain that caused it).
     const double inv_l0 = 1.0 / fi.l0;
     for (index_t i = 0; i < n; ++i) {
+      if (code && code[i] == 0)
+        continue; // an absent bar never changes
       const Stretch g = stretch(fi.d0.x + (v.ubx[i] - v.uax[i]), fi.d0.y + (v.uby[i] - v.uay[i]),
                                 fi.d0.z + (v.ubz[i] - v.uaz[i]), fi.l0, inv_l0);
       const Law law =

@@ -90,10 +90,13 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
   }
   bc.imposed_motion.assign(rows.size(), 0.0);
   bc.condition_motion.assign(rows.size(), 0.0);
+  // (A shaped body's absent nodes do not count: no bar with a stiffness reaches them, so their
+  // force is exactly 0 and, from rest, so is their motion, held or not; rows cut by the body's
+  // surface then take the node update without held DOF.)
   core.row_held.assign(rows.size(), 0);
   for (std::size_t r = 0; r < rows.size(); ++r)
     for (index_t i = 0; i < rows[r].length; ++i)
-      core.row_held[r] |= held[rows[r].first + i] != 0;
+      core.row_held[r] |= held[rows[r].first + i] != 0 && core.lat.node_present(rows[r].first + i);
   return held;
 }
 

@@ -49,7 +49,7 @@ struct MixedLinks {
 // -Wuninitialized (_mm512_setzero_pd, _mm512_maskz_mov_pd).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
-template <int NL, bool AllFast, bool Edge, bool Integrate, bool Held, bool Energy>
+template <int NL, bool AllFast, bool Edge, bool Shaped, bool Integrate, bool Held, bool Energy>
 inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
                         const EdgeLanes* lanes, std::int64_t i, const NodeRowArgs& a, __mmask8& hot,
                         __m512d& moved, __m512d* energy) {
@@ -78,15 +78,22 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
       s = _mm512_fnmadd_pd(_mm512_set1_pd(L.kl0), y, _mm512_set1_pd(L.k));
       // A report step's elastic energy of the bars whose first nodes are the row's, as the
       // intact kernel sums it: the same vectors of the same bar row, from u = u_b - u_a.
+      // A shaped body's bars with area factors below 1 (the lanes q1, q2, q3; none in a box).
       if constexpr (Energy)
-        if (L.first_node)
-          energy[l] = add_intact_energy(energy[l], ux, uy, uz, Vec3{L.rx, L.ry, L.rz}, l2, y, L.l0,
-                                        m, Edge ? lanes[l].first | lanes[l].last : 0, L.scale);
+        if (L.first_node) {
+          __m512d w = end_weights(Edge ? lanes[l].first | lanes[l].last : 0, L.scale);
+          if constexpr (Edge && Shaped)
+            w = times_quarters(w, lanes[l].q1, lanes[l].q2, lanes[l].q3);
+          energy[l] =
+              add_intact_energy(energy[l], ux, uy, uz, Vec3{L.rx, L.ry, L.rz}, l2, y, L.l0, m, w);
+        }
       if constexpr (Edge) {
         // The bar row's first and last bars (node i = ilo and ihi - 1) carry their own factor.
         const __m512d sc = _mm512_set1_pd(L.scale);
         s = _mm512_mask_mul_pd(s, lanes[l].first, s, sc);
         s = _mm512_mask_mul_pd(s, lanes[l].last, s, sc);
+        if constexpr (Shaped)
+          s = times_quarters(s, lanes[l].q1, lanes[l].q2, lanes[l].q3);
         s = _mm512_maskz_mov_pd(m, s);
         if (L.first_node)
           hot |= _mm512_mask_cmp_pd_mask(m, l2, _mm512_set1_pd(L.lw2), _CMP_GT_OQ);
@@ -135,23 +142,51 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
 // into `moved` (the spare slots of the row hold zeros, and move by 0).
 // With Energy, also the sum over the row of w (l - l0)^2 of each fast link's bars whose first
 // nodes are the row's, into energy[l] (see add_intact_energy).
+// Only the vectors [from, to) are taken (RowKind); without Integrate the others' forces are 0.
+// `shaped`: the lanes carry a shaped body's area factors (EdgeLanes::q1, q2, q3), and a vector
+// without a present bar on any link is skipped.
 template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy>
 bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
                      const EdgeLanes* lanes, std::int64_t n, std::int64_t lo, std::int64_t hi,
-                     const NodeRowArgs& a, double& moved, double* energy) {
+                     std::int64_t from, std::int64_t to, bool shaped, const NodeRowArgs& a,
+                     double& moved, double* energy) {
   __mmask8 hot = 0;
   __m512d q = _mm512_setzero_pd();
   __m512d sums[NL];
   if constexpr (Energy)
     for (int l = 0; l < NL; ++l)
       sums[l] = _mm512_setzero_pd();
-  for (std::int64_t i = 0; i < n; i += 8) {
+  if constexpr (!Integrate)
+    for (std::int64_t i = 0; i < n; i += 8)
+      if (i < from || i >= to) {
+        _mm512_store_pd(a.fx + i, _mm512_setzero_pd());
+        _mm512_store_pd(a.fy + i, _mm512_setzero_pd());
+        _mm512_store_pd(a.fz + i, _mm512_setzero_pd());
+      }
+  for (std::int64_t i = from; i < to; i += 8) {
     if (i >= lo && i + 8 <= hi) {
-      node_vector<NL, AllFast, false, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a, hot, q,
-                                                               sums);
+      node_vector<NL, AllFast, false, false, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a,
+                                                                      hot, q, sums);
     } else {
-      node_vector<NL, AllFast, true, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a, hot, q,
-                                                              sums);
+      // (A vector of a shaped body's absent nodes, which no present bar reaches, has nothing
+      // to gather, and its held nodes stay where they are.)
+      std::uint8_t any = 0xFF;
+      if (shaped) {
+        any = 0;
+        for (int l = 0; l < NL; ++l)
+          any |= lanes[l].has;
+      }
+      if (!shaped)
+        node_vector<NL, AllFast, true, false, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a,
+                                                                       hot, q, sums);
+      else if (any != 0)
+        node_vector<NL, AllFast, true, true, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a,
+                                                                      hot, q, sums);
+      else if constexpr (!Integrate) {
+        _mm512_store_pd(a.fx + i, _mm512_setzero_pd());
+        _mm512_store_pd(a.fy + i, _mm512_setzero_pd());
+        _mm512_store_pd(a.fz + i, _mm512_setzero_pd());
+      }
       lanes += kMaxRowLinks;
     }
   }
@@ -219,7 +254,7 @@ void portable_chunk(const LinkConst* c, const LinkRef* ref, const MixedLinks* mi
 template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy>
 bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
                      const EdgeLanes*, std::int64_t n, std::int64_t lo, std::int64_t hi,
-                     const NodeRowArgs& a, double&, double*) {
+                     std::int64_t, std::int64_t, bool, const NodeRowArgs& a, double&, double*) {
   static_assert(!Integrate, "the portable kernel gives forces only");
   bool any_fast = AllFast;
   for (int l = 0; l < NL; ++l)
@@ -416,15 +451,23 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
       const double* __restrict ux = core.ux.data() + n0;
       const double* __restrict uy = core.uy.data() + n0;
       const double* __restrict uz = core.uz.data() + n0;
+      // A shaped body's rows have their own vectors with lane masks (the AVX-512 kernel's) and
+      // nodes that move, [from, to); their links are the kind's. (The portable kernel reads the
+      // absent bars' s = 0 from the buffers and keeps the kind's ranges: the box's, whose
+      // arithmetic a full mask then repeats bit for bit.)
+      const RowKind& span = core.layout.coded() ? core.layout.row_span[r]
+                                                : core.layout.row_kinds[core.layout.row_kind[r]];
+      const RowKind& kind = kVectorKernel ? span : core.layout.row_kinds[core.layout.row_kind[r]];
+      const auto from = static_cast<index_t>(span.from),
+                 to = static_cast<index_t>(std::min<std::int64_t>(span.to, n));
       // The integration below streams u_{n-1} (overwritten by u_{n+1}) and 1/m from memory; ask for
       // them now so that they arrive while the row's forces are gathered (measured: +9 % on 64^3).
-      for (index_t i = 0; i < n; i += 8) {
+      for (index_t i = from; i < to; i += 8) {
         __builtin_prefetch(core.wx.data() + n0 + i, 1);
         __builtin_prefetch(core.wy.data() + n0 + i, 1);
         __builtin_prefetch(core.wz.data() + n0 + i, 1);
         __builtin_prefetch(core.inv_mass.data() + n0 + i, 0);
       }
-      const RowKind& kind = core.layout.row_kinds[core.layout.row_kind[r]];
       // The portable kernel takes a whole row in one pass where it can (core.layout.row_whole).
       const std::int64_t lo = !kVectorKernel && core.layout.row_whole[r] ? 0 : kind.lo;
       const std::int64_t hi =
@@ -483,8 +526,10 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
       const auto forces = [&](auto count, auto fast, auto integrate, auto held_c) {
         return node_row_forces < decltype(count)::value, decltype(fast)::value,
                decltype(integrate)::value, decltype(held_c)::value,
-               Report && kVectorKernel > (lc, ref, &mixed, &core.layout.edge_lanes[kind.edge_begin],
-                                          n, lo, hi, args, motion, energy);
+               Report &&
+                   kVectorKernel > (lc, ref, &mixed,
+                                    core.layout.edge_lanes.data() + kind.edge_begin, n, lo, hi,
+                                    span.from, span.to, core.layout.coded(), args, motion, energy);
       };
       const auto by_count = [&](auto... flags) {
         switch (padded) {
@@ -546,15 +591,19 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
       double damping = 0.0, load_mid = 0.0, load_half = 0.0, kinetic = 0.0;
       const IntegrationConstants ic{dt, c1, c2, alpha};
       // (The rows' motion only matters to the fast path.)
+      // (The nodes [from, to): the others' terms of the sums are zeros, which change no sum.)
       const auto integrate = [&](auto held_c, auto motion_c) {
         constexpr bool H = decltype(held_c)::value, M = decltype(motion_c)::value;
+        const index_t f = from;
+        const auto at = [f](const double* p) { return p ? p + f : p; };
         integrate_row<Damped, Loads, Report, H, M>(
-            n, ic, H ? free_x : nullptr, H ? free_y : nullptr, H ? free_z : nullptr, im, m, fx, fy,
-            fz, fw, px, py, pz, ux, uy, uz, wx, wy, wz, fd, damping, load_mid, load_half, kinetic,
-            motion);
+            to - from, ic, H ? free_x + f : nullptr, H ? free_y + f : nullptr,
+            H ? free_z + f : nullptr, im + f, m + f, fx + f, fy + f, fz + f, fw + f, at(px), at(py),
+            at(pz), ux + f, uy + f, uz + f, wx + f, wy + f, wz + f, fd + f, damping, load_mid,
+            load_half, kinetic, motion);
       };
       if (core.row_held[r]) {
-        for (index_t i = 0; i < n; ++i) {
+        for (index_t i = from; i < to; ++i) {
           free_x[i] = held[i] & kDofX ? 0.0 : 1.0;
           free_y[i] = held[i] & kDofY ? 0.0 : 1.0;
           free_z[i] = held[i] & kDofZ ? 0.0 : 1.0;

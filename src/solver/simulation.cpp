@@ -626,7 +626,8 @@ double Simulation::bytes_per_module() const {
            bytes(c.row_held) + bytes(c.row_damaged) + bytes(l.node_rows) + bytes(l.bar_rows) +
            bytes(c.row_fast) + bytes(c.line_fast) + bytes(c.row_ratio) + bytes(l.row_inv_lp) +
            bytes(l.row_watch) + bytes(l.row_first_centre) + bytes(l.row_whole) +
-           bytes(l.bar_row_nodes) + bytes(c.node_row_motion);
+           bytes(l.bar_row_nodes) + bytes(c.node_row_motion) + bytes(l.edge_lanes) +
+           bytes(l.bar_code) + bytes(l.row_span);
   for (const auto& b : c.plane_buffers)
     total += bytes(b);
   for (const auto& b : c.line_stores)

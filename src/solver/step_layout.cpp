@@ -14,6 +14,87 @@ std::size_t StepLayout::node_row_of(const Lattice& lat, index_t node) const {
 
 namespace {
 
+// Whether the bar pass may leave a row's absent bars out (BarRow::p0, p1): the AVX-512 node
+// kernel reads a bar's force only where the bar is present; the portable one reads the whole
+// ranges of its links from the plane buffers.
+#if defined(__AVX512F__)
+constexpr bool kTrimRows = true;
+#else
+constexpr bool kTrimRows = false;
+#endif
+
+// A shaped body's node row r (of n nodes and nl links): its vectors of 8 nodes whose every
+// lane has every link at area factor 1 (the longest run of them, [lo, hi)) and, for the others
+// in order, each link's lanes: the present bars and their area factors from the bars' codes.
+void add_row_span(StepLayout& out, std::size_t r, const RowLink* links, int nl, std::int64_t n) {
+  const auto lanes_of = [&](const RowLink& L, std::int64_t i) {
+    EdgeLanes e{0, 0, 0, 0, 0, 0};
+    for (std::int64_t q = std::max<std::int64_t>(L.ilo, i);
+         q < std::min<std::int64_t>(L.ihi, i + 8); ++q) {
+      const auto bit = static_cast<std::uint8_t>(1u << (q - i));
+      switch (out.bar_code[static_cast<std::size_t>(L.bar_base + q)]) {
+      case 0:
+        continue;
+      case 1:
+        e.q1 |= bit;
+        break;
+      case 2:
+        e.q2 |= bit;
+        break;
+      case 3:
+        e.q3 |= bit;
+        break;
+      default:
+        break;
+      }
+      e.has |= bit;
+    }
+    return e;
+  };
+  const auto clean = [&](std::int64_t i) {
+    if (nl < 7 || i + 8 > n)
+      return false;
+    for (int l = 0; l < nl; ++l) {
+      const EdgeLanes e = lanes_of(links[l], i);
+      if (e.has != 0xFF || (e.q1 | e.q2 | e.q3) != 0)
+        return false;
+    }
+    return true;
+  };
+  std::int64_t lo = 0, hi = 0;
+  for (std::int64_t i = 0; i < n;) {
+    if (!clean(i)) {
+      i += 8;
+      continue;
+    }
+    std::int64_t e = i + 8;
+    while (e < n && clean(e))
+      e += 8;
+    if (e - i > hi - lo) {
+      lo = i;
+      hi = e;
+    }
+    i = e;
+  }
+  // The vectors that hold present nodes (a present node has a present bar on some link).
+  std::int64_t from = n, to = 0;
+  for (std::int64_t i = 0; i < n; i += 8)
+    for (int l = 0; l < nl; ++l)
+      if (lanes_of(links[l], i).has != 0) {
+        from = std::min(from, i);
+        to = i + 8;
+      }
+  if (from >= to)
+    from = to = 0;
+  out.row_span[r] = {n, nl, lo, hi, out.edge_lanes.size(), from, to};
+  for (std::int64_t i = from; i < to; i += 8) {
+    if (i >= lo && i + 8 <= hi)
+      continue;
+    for (int l = 0; l < kMaxRowLinks; ++l)
+      out.edge_lanes.push_back(l < nl ? lanes_of(links[l], i) : EdgeLanes{0, 0, 0, 0, 0, 0});
+  }
+}
+
 // The kinds of node rows and each row's links (link_const, edge_lanes, row_kinds, row_kind,
 // link_ref), from the bar rows (in (k, j, family) order, `row_at`).
 void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
@@ -26,6 +107,8 @@ void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
   };
   out.link_ref.resize(kMaxRowLinks * out.node_rows.size());
   out.row_kind.resize(out.node_rows.size());
+  if (out.coded())
+    out.row_span.resize(out.node_rows.size());
   for (std::size_t r = 0; r < out.node_rows.size(); ++r) {
     RowLink links[kMaxRowLinks];
     const int nl = row_links(lat, out.node_rows[r], links, out.slots);
@@ -73,7 +156,7 @@ void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
       if (nl < 7)
         lo = hi = 0;
       hi = std::max(lo, hi);
-      out.row_kinds.push_back({n, nl, lo, hi, out.edge_lanes.size()});
+      out.row_kinds.push_back({n, nl, lo, hi, out.edge_lanes.size(), 0, n});
       out.link_const.insert(out.link_const.end(), kind, kind + kMaxRowLinks);
       const auto lane = [](std::int64_t at, std::int64_t i) {
         return at >= i && at < i + 8 ? static_cast<std::uint8_t>(1u << (at - i)) : std::uint8_t{0};
@@ -83,7 +166,7 @@ void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
           continue;
         for (int l = 0; l < kMaxRowLinks; ++l) {
           const LinkConst& L = kind[l];
-          EdgeLanes e{0, 0, 0};
+          EdgeLanes e{0, 0, 0, 0, 0, 0};
           for (std::int64_t q = std::max(L.ilo, i); q < std::min(L.ihi, i + 8); ++q)
             e.has = static_cast<std::uint8_t>(e.has | (1u << (q - i)));
           if (L.scale != 1.0) {
@@ -95,6 +178,8 @@ void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
       }
     }
     out.row_kind[r] = static_cast<std::uint16_t>(t);
+    if (out.coded())
+      add_row_span(out, r, links, nl, n);
   }
 }
 
@@ -110,6 +195,19 @@ StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
   out.slot_count =
       static_cast<std::size_t>(out.slots.centre_first + out.slots.centre_row * lat.ny() * lat.nz());
 
+  // A shaped body of one material: each bar's area factor in quarters (exact: 1/4 steps).
+  const bool coded = lat.shaped() && !table.per_bar();
+  if (coded) {
+    out.bar_code.resize(lat.num_bars());
+    for (int f = 0; f < kFamilies; ++f) {
+      const FamilyInfo& fi = lat.family(f);
+      for (index_t k = 0; k < fi.nk; ++k)
+        for (index_t j = 0; j < fi.nj; ++j)
+          for (index_t i = 0; i < fi.ni; ++i)
+            out.bar_code[static_cast<std::size_t>(fi.offset + i + fi.ni * (j + fi.nj * k))] =
+                static_cast<std::uint8_t>(4.0 * lat.area_factor(static_cast<Family>(f), i, j, k));
+    }
+  }
   // A node row needs bar rows of its own line and the line below, in its plane and the plane
   // below, so the bar forces it reads were computed moments before.
   for (const NodeRow& row : node_rows(lat))
@@ -126,9 +224,22 @@ StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
         const auto fam = static_cast<Family>(f);
         // Along a row (i running) an edge bar's area factor changes only at i = 0 and
         // i = ni - 1 (EdgeY, EdgeZ: the x faces); inside it is that of i = 1.
-        const double inner = lat.area_factor(fam, std::min<index_t>(1, fi.ni - 1), j, k);
-        out.bar_rows.push_back({f, j, k, inner, lat.area_factor(fam, 0, j, k),
-                                out.slot(lat, fi.a.at(0, j, k)), out.slot(lat, fi.b.at(0, j, k))});
+        const double inner =
+            coded ? 1.0 : lat.area_factor(fam, std::min<index_t>(1, fi.ni - 1), j, k);
+        const double end = coded ? 1.0 : lat.area_factor(fam, 0, j, k);
+        index_t p0 = 0, p1 = fi.ni;
+        if (coded && kTrimRows) {
+          // From the vector of 8 of the first present bar (the lanes stay those of the node
+          // kernel's vectors) to the last present bar; an empty range where none is.
+          const std::uint8_t* code = out.bar_code.data() + fi.offset + fi.ni * (j + fi.nj * k);
+          while (p1 > 0 && code[p1 - 1] == 0)
+            --p1;
+          while (p0 < p1 && code[p0] == 0)
+            ++p0;
+          p0 = p0 / 8 * 8;
+        }
+        out.bar_rows.push_back({f, j, k, inner, end, out.slot(lat, fi.a.at(0, j, k)),
+                                out.slot(lat, fi.b.at(0, j, k)), p0, p1});
       }
   // The links of every node row, computed once (they cost more to derive than to read), their
   // bar rows (in (k, j, family) order) and pristine springs; rows of one kind share their

@@ -33,8 +33,10 @@ struct LinkConst {
 
 // The lanes of a vector of 8 nodes at a row's end, for one link: those whose nodes have the
 // link, and those whose bar is the first or the last of its bar row with a factor of its own.
+// In a shaped body (StepLayout::bar_code), `has` leaves out absent bars and q1, q2, q3 are the
+// lanes whose bars have the area factor 1/4, 1/2 and 3/4 (first and last are then empty).
 struct EdgeLanes {
-  std::uint8_t has, first, last;
+  std::uint8_t has, first, last, q1, q2, q3;
 };
 
 // The rest, per row: node i's other node is slot other + i, the force over length of node i's
@@ -48,19 +50,25 @@ struct LinkRef {
 // A kind of node row: its length and links; the vectors of 8 nodes from i = lo on and ending
 // by hi have every link on every lane and no end bar to scale; the others, in order, take
 // their lanes from StepLayout::edge_lanes (kMaxRowLinks per such vector, from edge_begin on).
+// The step takes the nodes [from, to) (whole vectors; [0, n) in a box, in a shaped body's row
+// the vectors that hold its present nodes: the others have no force and do not move).
 struct RowKind {
   std::int64_t n;
   int links;
   std::int64_t lo, hi;
   std::size_t edge_begin;
+  std::int64_t from, to;
 };
 
-// A row of bars: family f, i running, at (j, k).
+// A row of bars: family f, i running, at (j, k). In a shaped body (StepLayout::bar_code) the
+// factors are 1 and the bars' own are in their codes; the kernels take the bars [p0, p1) (from
+// the vector of 8 that holds the first present bar to the last present bar; [0, ni) in a box).
 struct BarRow {
   int family;
   index_t j, k;
   double factor, end_factor;  // area factors of the row's bars (inner, first/last)
   std::size_t a_slot, b_slot; // slots of the first and second nodes of the row's bar i = 0
+  index_t p0, p1;
 };
 
 // Row ranges of each line (fixed j, k) and the lines of each k-plane.
@@ -92,6 +100,13 @@ struct StepLayout {
   std::vector<std::uint16_t> row_kind;
   std::vector<std::uint8_t> row_whole;
   std::vector<LinkRef> link_ref;
+  // A shaped body of one material (a BarTable with constants per family): each bar's area
+  // factor times 4 (0 for an absent bar, 1 to 4 for an edge bar, 0 or 4 for the others), and
+  // per node row its own vectors with and without lane masks (RowKind's n, links, lo, hi and
+  // edge_begin in edge_lanes; the kinds keep the links' constants). Empty for a box.
+  std::vector<std::uint8_t> bar_code;
+  std::vector<RowKind> row_span;
+  bool coded() const { return !bar_code.empty(); }
   // Per bar row: the node rows of its first and second nodes, whether its first nodes are
   // centres (else corners), 1 / l_p with l_p = l0 (1 + e_lim) the length at which its bars
   // leave the law's elastic range, and the largest (l / l_p)^2 a bar no longer than its watch
