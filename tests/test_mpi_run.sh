@@ -66,6 +66,16 @@ done
 mpi 4 run "$T/holed.toml" --out "$T/holed-22" --no-plot --threads 1 --process-grid 2 2 \
   >/dev/null 2>"$T/err" || bad "holed plate on 2 x 2: $(cat "$T/err")"
 compare "$T/holed-1" "$T/holed-22" "holed plate: 2 x 2 processes against one"
+# The same holes in a plate of one material, whose step takes each bar's area factor from a
+# byte and masks the vectors at the body's surface (docs/architecture.md, "Shaped bodies").
+{ sed -e "s/^end = .*/end = ${HOLED_END:-0.8e-3}/; s/^modules = .*/modules = [40, 4, 20]/" \
+    -e 's/^edge2 = .*/edge2 = [0.0, 0.022, 0.0]/' "$SRC/cases/tutorial/notched_plate.toml"
+  printf '\n[[geometry]]\nremove = { type = "cylinder", start = [0.14, -1, 0.05], end = [0.14, 1, 0.05], radius = 0.02 }\n\n[[geometry]]\nremove = { type = "sphere", centre = [0.09, 0.02, 0.03], radius = 0.012 }\n'; } >"$T/holed-uniform.toml"
+"$LDEM" run "$T/holed-uniform.toml" --out "$T/holed-u1" --no-plot --threads 1 >/dev/null \
+  2>"$T/err" || bad "uniform holed plate on one process: $(cat "$T/err")"
+mpi 4 run "$T/holed-uniform.toml" --out "$T/holed-u22" --no-plot --threads 1 --process-grid 2 2 \
+  >/dev/null 2>"$T/err" || bad "uniform holed plate on 2 x 2: $(cat "$T/err")"
+compare "$T/holed-u1" "$T/holed-u22" "uniform holed plate: 2 x 2 processes against one"
 mpi 4 run "$T/thick.toml" --out "$T/thick-ck" --no-plot --threads 1 --process-grid 2 2 \
   --checkpoint-every 1500 >/dev/null 2>"$T/err" || bad "checkpointed 2 x 2 run: $(cat "$T/err")"
 mpi 3 resume "$T/thick-ck" --no-plot --threads 1 >/dev/null 2>"$T/err" &&
