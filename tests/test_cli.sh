@@ -268,6 +268,12 @@ rc=$?
 "$LDEM" plot "$T/cube" --view xx >/dev/null 2>"$T/stderr"
 rc=$?
 [ $rc -eq 2 ] && grep -q "view: expected two different axes among x, y, z" "$T/stderr" && ok || bad "bad --view: rc $rc, $(cat "$T/stderr")"
+# `ldem plot` on a folder that is not an output folder: an error naming the file, no traceback.
+mkdir -p "$T/not-a-run"
+"$LDEM" plot "$T/not-a-run" >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q "not-a-run/case.resolved.toml: cannot read the resolved case" "$T/stderr" &&
+  ! grep -q "Traceback\|matplotlib" "$T/stderr" && ok || bad "ldem plot on a non-output folder: rc $rc, $(cat "$T/stderr")"
 
 # The crack analysis: a shipped plate with [analysis] crack = true leaves crack_tip.csv,
 # crack_speed.png and analysis.crack; `ldem analyze crack` on a folder that is not an output

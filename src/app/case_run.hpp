@@ -96,8 +96,12 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
                    int grid_z = 0);
 // The pictures of an output folder (tools/plot/ldem_plot.py); `view` ("xz", ...) and `cut`
 // ("y=0.015") choose crack.png's projection or slice (empty: the default for the body).
-// 0: done; 1: no matplotlib; 2: a bad view or slice (the script says which).
+// 0: done; 1: the script failed (no matplotlib, or its own message); 2: not an output folder,
+// or a bad view or slice (the script says which).
 int plot_command(const std::string& dir, const std::string& view = "", const std::string& cut = "");
+// Why the plotting script failed, for a warning: matplotlib missing (with the package to
+// install), or the script's own message.
+std::string plot_failure_reason();
 // Prints the `count` lowest eigenfrequencies of the case's lattice (solver/modes.hpp) as a table,
 // with the time step and any periodic load frequency compared to the lowest. No files.
 int modes_command(const std::string& path, int count, int threads);

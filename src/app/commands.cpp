@@ -341,6 +341,16 @@ int plot_command(const std::string& dir, const std::string& view, const std::str
                  *o);
       return 2;
     }
+  // A folder without a resolved case is not an output folder: say so, rather than let the
+  // script fail on it.
+  const std::string resolved = dir + "/case.resolved.toml";
+  if (!std::filesystem::is_regular_file(resolved)) {
+    fmt::print(stderr,
+               "ldem plot: {}: cannot read the resolved case (expected the output folder of a "
+               "run)\n",
+               resolved);
+    return 2;
+  }
   std::string cmd = fmt::format("/usr/bin/python3 '{}'", LDEM_PLOT_SCRIPT);
   if (!view.empty())
     cmd += fmt::format(" --view '{}'", view);
@@ -351,11 +361,17 @@ int plot_command(const std::string& dir, const std::string& view, const std::str
   if (rc != -1 && WIFEXITED(rc) && WEXITSTATUS(rc) == 2)
     return 2; // bad --view or --slice, said by the script
   if (rc != 0) {
-    fmt::print(stderr, "ldem: warning: plotting failed (needs /usr/bin/python3 with matplotlib: "
-                       "apt-get install python3-matplotlib); the data files are complete\n");
+    fmt::print(stderr, "ldem: warning: plotting failed ({}); the data files are complete\n",
+               plot_failure_reason());
     return 1;
   }
   return 0;
+}
+
+std::string plot_failure_reason() {
+  if (std::system("/usr/bin/python3 -c 'import matplotlib, numpy' >/dev/null 2>&1") != 0)
+    return "needs /usr/bin/python3 with matplotlib and numpy: apt-get install python3-matplotlib";
+  return "the plotting script stopped with the message above";
 }
 
 } // namespace ldem

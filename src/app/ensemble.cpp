@@ -161,8 +161,8 @@ int ensemble_command(const EnsembleOptions& o) {
                                  o.out_dir));
   fs::create_directories(o.out_dir, ec);
   if (ec)
-    throw InputError(fmt::format("{}: cannot create the output folder: {}", o.out_dir,
-                                 ec.message()));
+    throw InputError(
+        fmt::format("{}: cannot create the output folder: {}", o.out_dir, ec.message()));
 
   std::vector<Row> rows;
   for (std::size_t k = 0; k < o.cases.size(); ++k)
@@ -236,21 +236,23 @@ int ensemble_command(const EnsembleOptions& o) {
     }
 
   // The table: every run, then median and range per case.
-  std::string csv = "case,run,courant,dt,velocity_relative_change,precrack_mirrored,"
-                    "branching_length_mm,upper_branch_angle_deg,lower_branch_angle_deg,branches,"
-                    "branches_open,secondary_branching,speed_before_branching_m_s,max_crack_speed_m_s,"
-                    "max_speed_over_rayleigh,median_crack_speed_m_s,max_unflagged_crack_speed_m_s,"
-                    "crack_length_mm,external_work_J,elastic_J,"
-                    "kinetic_J,dissipated_J,max_balance_error,wall_s\n";
+  std::string csv =
+      "case,run,courant,dt,velocity_relative_change,precrack_mirrored,"
+      "branching_length_mm,upper_branch_angle_deg,lower_branch_angle_deg,branches,"
+      "branches_open,secondary_branching,speed_before_branching_m_s,max_crack_speed_m_s,"
+      "max_speed_over_rayleigh,median_crack_speed_m_s,max_unflagged_crack_speed_m_s,"
+      "crack_length_mm,external_work_J,elastic_J,"
+      "kinetic_J,dissipated_J,max_balance_error,wall_s\n";
   for (const Row& r : rows)
-    csv += fmt::format("{},{},{:.4f},{:.6g},{:g},{},{},{},{},{},{},{},{},{:.6g},{:.4f},{:.6g},{:.6g},"
-                       "{:.5g},{:.6g},"
-                       "{:.6g},{:.6g},{:.6g},{:.4g},{:.3f}\n",
-                       r.case_name, r.run, r.p.courant, r.dt, r.p.velocity_eps,
-                       r.p.mirror_precrack ? "true" : "false", num(r.branching_mm, ".4f"),
-                       num(r.upper_deg, ".2f"), num(r.lower_deg, ".2f"), r.branches, r.open,
-                       r.secondary ? "true" : "false", num(r.speed_branch, ".6g"), r.speed,
-                       r.speed_over_cR, r.speed_median, r.speed_unflagged, r.length_mm, r.W, r.U, r.K, r.D, r.balance, r.wall);
+    csv += fmt::format(
+        "{},{},{:.4f},{:.6g},{:g},{},{},{},{},{},{},{},{},{:.6g},{:.4f},{:.6g},{:.6g},"
+        "{:.5g},{:.6g},"
+        "{:.6g},{:.6g},{:.6g},{:.4g},{:.3f}\n",
+        r.case_name, r.run, r.p.courant, r.dt, r.p.velocity_eps,
+        r.p.mirror_precrack ? "true" : "false", num(r.branching_mm, ".4f"), num(r.upper_deg, ".2f"),
+        num(r.lower_deg, ".2f"), r.branches, r.open, r.secondary ? "true" : "false",
+        num(r.speed_branch, ".6g"), r.speed, r.speed_over_cR, r.speed_median, r.speed_unflagged,
+        r.length_mm, r.W, r.U, r.K, r.D, r.balance, r.wall);
   write_file(o.out_dir + "/ensemble.csv", csv);
 
   std::string md = fmt::format(
@@ -281,10 +283,9 @@ int ensemble_command(const EnsembleOptions& o) {
                         "{} | {} | {:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | {:.2f} |\n",
                         r->run, r->p.courant, r->p.mirror_precrack ? "mirrored" : "as given",
                         num(r->branching_mm, ".3f"), num(r->upper_deg, ".1f"),
-                        num(r->lower_deg, ".1f"), r->branches, r->open,
-                        r->secondary ? "yes" : "no", num(r->speed_branch / r->cR, ".2f"),
-                        r->speed_over_cR, num(r->speed_unflagged / r->cR, ".2f"),
-                        num(r->speed_median / r->cR, ".2f"),
+                        num(r->lower_deg, ".1f"), r->branches, r->open, r->secondary ? "yes" : "no",
+                        num(r->speed_branch / r->cR, ".2f"), r->speed_over_cR,
+                        num(r->speed_unflagged / r->cR, ".2f"), num(r->speed_median / r->cR, ".2f"),
                         r->length_mm, r->U * 1e6, r->K * 1e6, r->D * 1e6, r->balance, r->wall);
     auto col = [&](auto f) {
       std::vector<double> v;
@@ -313,20 +314,23 @@ int ensemble_command(const EnsembleOptions& o) {
                       "{:.2f} | {} | {} | {:.3g} | {:.1f} | {:.1f} | {:.1f} | {:.2g} | |\n",
                       num(median(bl), ".3f"), num(median(up), ".1f"), num(median(lo), ".1f"),
                       branched, rs.size(), secondary, rs.size(), measured_median(sp, ".2f"),
-                      median(sr), measured_median(su, ".2f"), measured_median(sm, ".2f"), median(ln), median(U), median(K), median(D), median(B));
+                      median(sr), measured_median(su, ".2f"), measured_median(sm, ".2f"),
+                      median(ln), median(U), median(K), median(D), median(B));
     md += fmt::format("| range | | | {} | {} | {} | | | {} | {} | {} | {} | {} | {} | {} | {} | {} "
                       "| |\n",
                       range(bl, ".3f"), range(up, ".1f"), range(lo, ".1f"), range(sp, ".2f"),
-                      range(sr, ".2f"), range(su, ".2f"), range(sm, ".2f"), range(ln, ".3g"), range(U, ".1f"), range(K, ".1f"),
-                      range(D, ".1f"), range(B, ".2g"));
+                      range(sr, ".2f"), range(su, ".2f"), range(sm, ".2f"), range(ln, ".3g"),
+                      range(U, ".1f"), range(K, ".1f"), range(D, ".1f"), range(B, ".2g"));
   }
   write_file(o.out_dir + "/ensemble.md", md);
   if (o.plots) {
     const std::string cmd =
         fmt::format("/usr/bin/python3 '{}' --ensemble '{}'", LDEM_PLOT_SCRIPT, o.out_dir);
     if (std::system(cmd.c_str()) != 0)
-      fmt::print(stderr, "ldem: warning: the ensemble's pictures failed (needs /usr/bin/python3 "
-                         "with matplotlib); the tables are complete\n");
+      fmt::print(stderr,
+                 "ldem: warning: the ensemble's pictures failed ({}); the tables are "
+                 "complete\n",
+                 plot_failure_reason());
   }
   fmt::print(stderr, "ldem: ensemble done: {} runs, table in {}/ensemble.md and ensemble.csv\n",
              rows.size(), o.out_dir);
