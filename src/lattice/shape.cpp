@@ -281,18 +281,27 @@ std::string header_value(const std::string& header, const std::string& key) {
 
 } // namespace
 
-std::vector<std::uint8_t> read_npy_mask(const std::string& path, index_t nx, index_t ny,
-                                        index_t nz) {
+namespace {
+
+// The bytes of a file a case names (`what`: "mask", "STL"); a path that is not a regular file
+// or cannot be opened is an InputError naming it.
+std::string read_input_file(const std::string& path, const std::string& what) {
   std::error_code ec;
   if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
-    throw InputError(fmt::format("{}: expected a mask file, got something else (a folder, a "
+    throw InputError(fmt::format("{}: expected {} {} file, got something else (a folder, a "
                                  "device)",
-                                 path));
+                                 path, what == "STL" ? "an" : "a", what));
   std::ifstream in(path, std::ios::binary);
   if (!in)
-    throw InputError(fmt::format("{}: cannot open the mask file", path));
-  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)),
-                                std::istreambuf_iterator<char>());
+    throw InputError(fmt::format("{}: cannot open the {} file", path, what));
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+} // namespace
+
+std::vector<std::uint8_t> read_npy_mask(const std::string& path, index_t nx, index_t ny,
+                                        index_t nz) {
+  const std::string bytes = read_input_file(path, "mask");
   auto fail = [&](const std::string& what) -> std::vector<std::uint8_t> {
     throw InputError(fmt::format("{}: {}", path, what));
   };
@@ -383,15 +392,7 @@ std::vector<std::uint8_t> read_npy_mask(const std::string& path, index_t nx, ind
 }
 
 std::vector<Triangle> read_stl(const std::string& path, double scale) {
-  std::error_code ec;
-  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
-    throw InputError(fmt::format("{}: expected an STL file, got something else (a folder, a "
-                                 "device)",
-                                 path));
-  std::ifstream in(path, std::ios::binary);
-  if (!in)
-    throw InputError(fmt::format("{}: cannot open the STL file", path));
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string bytes = read_input_file(path, "STL");
   std::vector<Triangle> out;
   auto finite = [&](const Triangle& t) {
     for (const Vec3& v : t)
