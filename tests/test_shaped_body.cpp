@@ -1,6 +1,7 @@
 // Tests of shaped bodies in the solver: a Lattice with a module mask (Lattice::set_modules) has
 // the area factors, masses, node sets and forces of its present modules only, and its box's
 // other nodes and bars take no part in the motion.
+#include "app/run_body.hpp"
 #include "helpers.hpp"
 #include "lattice/node_set.hpp"
 #include "lattice/precrack.hpp"
@@ -11,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <gtest/gtest.h>
 #include <memory>
 #include <numbers>
@@ -284,10 +286,10 @@ struct ShapedRun {
   double fast_share = 0.0;
 };
 
-ShapedRun shaped_notched_run(const std::vector<ShapeOp>& shape, index_t ny, int threads,
-                             bool at_nodes, int block_lines) {
-  const int before = omp_get_max_threads();
-  omp_set_num_threads(threads);
+// The body of such a run: modules `shape` of a 16 x ny x 16 box (L = 1), its faces z pulled
+// apart at 0.01 (ramped over 5), a notch from x = 0 to 40 % of the width at mid-height.
+BuiltCase shaped_notched_case(const std::vector<ShapeOp>& shape, index_t ny, bool at_nodes,
+                              int block_lines) {
   const index_t n = 16;
   Lattice lat(n, ny, n, 1.0);
   lat.set_modules(mask_of(n, ny, n, 1.0, shape));
@@ -307,7 +309,20 @@ ShapedRun shaped_notched_run(const std::vector<ShapeOp>& shape, index_t ny, int 
   std::vector<index_t> cut = cut_bars(lat, notch, false).bars;
   BarTable table(lat, unit_material(0.01, 3.0));
   EXPECT_FALSE(table.per_bar());
-  Simulation sim(std::move(lat), std::move(table), std::move(c), o, std::move(cut));
+  BuiltCase out;
+  out.path = "shaped.toml";
+  out.lattice.emplace(lat);
+  out.sim = std::make_unique<Simulation>(std::move(lat), std::move(table), std::move(c), o,
+                                         std::move(cut));
+  return out;
+}
+
+ShapedRun shaped_notched_run(const std::vector<ShapeOp>& shape, index_t ny, int threads,
+                             bool at_nodes, int block_lines) {
+  const int before = omp_get_max_threads();
+  omp_set_num_threads(threads);
+  BuiltCase built = shaped_notched_case(shape, ny, at_nodes, block_lines);
+  Simulation& sim = *built.sim;
   ShapedRun out;
   for (int s = 0; sim.time() < 60.0; ++s) {
     sim.step(s % 25 == 0);
@@ -366,6 +381,78 @@ TEST(ShapedBody, TheFastPathThreadsAndBlocksChangeNoResult) {
   }
 }
 
+// Every state array of a simulation by node and bar number (a checkpoint's content).
+std::vector<std::vector<double>> all_state(const Simulation& sim) {
+  std::vector<std::vector<double>> out;
+  const std::vector<Simulation::NamedArray> arrays = sim.state_arrays();
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    out.emplace_back();
+    sim.append_state(a, 0, arrays[a].per_bar ? sim.lattice().num_bars() : sim.lattice().num_nodes(),
+                     out.back());
+  }
+  return out;
+}
+
+// A shaped body of one material keeps in its node and state arrays only what its kernels read
+// (in the AVX-512 build: each node row's window of vectors, each bar row's bars [p0, p1);
+// StepLayout::row_window), while a checkpoint holds every node and bar of the box by number.
+// The notched cylinder checkpointed in the middle of its fracture and resumed in a new body
+// must go on bit for bit as the run that went on (displacements, states, events); the box's
+// nodes outside the body read as at rest (u = u_previous = 0: they have no stiffness and start
+// at rest) and its bars outside the body in their initial state (the bilinear law's history
+// starts at e_p, 0.01 in shaped_notched_case's material).
+TEST(ShapedBody, ACheckpointOfAShapedBodyResumesBitForBit) {
+  const std::string dir = ::testing::TempDir() + "ldem_shaped_checkpoint";
+  std::filesystem::create_directories(dir);
+  const std::string ckpt = dir + "/state.ckpt";
+  const std::vector<ShapeOp> shape{keep_cylinder_z(8.0, 8.0, 7.6)};
+  const bool fast = Simulation::intact_at_nodes_built();
+  BuiltCase a = shaped_notched_case(shape, 16, fast, 0);
+  std::unique_ptr<RunBody> body = make_serial_body(a);
+  int s = 0;
+  std::vector<Event> before;
+  for (; a.sim->time() < 40.0; ++s)
+    body->step(s % 25 == 0);
+  before = a.sim->take_events();
+  ASSERT_GT(before.size(), 5u) << "no crack yet at the checkpoint";
+  body->write_checkpoint(ckpt, "meta");
+  const int half = s;
+  for (; s < 2 * half; ++s)
+    body->step(s % 25 == 0);
+  const std::vector<Event> went_on = a.sim->take_events();
+  EXPECT_GT(went_on.size(), 5u) << "the crack stopped after the checkpoint";
+
+  BuiltCase b = shaped_notched_case(shape, 16, fast, 0);
+  std::unique_ptr<RunBody> resumed = make_serial_body(b);
+  EXPECT_EQ(resumed->read_checkpoint(ckpt), "meta");
+  for (s = half; s < 2 * half; ++s)
+    resumed->step(s % 25 == 0);
+  const std::vector<Event> after = b.sim->take_events();
+  ASSERT_EQ(after.size(), went_on.size());
+  for (std::size_t i = 0; i < after.size(); ++i) {
+    EXPECT_EQ(after[i].bar, went_on[i].bar);
+    EXPECT_EQ(after[i].step, went_on[i].step);
+  }
+  const std::vector<std::vector<double>> x = all_state(*a.sim), y = all_state(*b.sim);
+  ASSERT_EQ(x.size(), 7u); // u, u_previous (x, y, z) and the bilinear law's history
+  EXPECT_EQ(x, y);
+  const Lattice& lat = *a.lattice;
+  index_t absent_nodes = 0, absent_bars = 0;
+  for (index_t n = 0; n < lat.num_nodes(); ++n)
+    if (!lat.node_present(n)) {
+      ++absent_nodes;
+      for (std::size_t q = 0; q < 6; ++q)
+        ASSERT_EQ(x[q][static_cast<std::size_t>(n)], 0.0) << "node " << n;
+    }
+  for (index_t bar = 0; bar < lat.num_bars(); ++bar)
+    if (!lat.bar_present(bar)) {
+      ++absent_bars;
+      ASSERT_EQ(x[6][static_cast<std::size_t>(bar)], 0.01) << "bar " << bar;
+    }
+  EXPECT_GT(absent_nodes, 100);
+  EXPECT_GT(absent_bars, 1000);
+}
+
 // Node sets take present nodes only; a face's tributary areas add up to the body's area on the
 // face; the surface of the body inside a shape is its corners with fewer than 8 present modules.
 TEST(ShapedBody, NodeSetsTakeThePresentNodesOnly) {
@@ -379,6 +466,21 @@ TEST(ShapedBody, NodeSetsTakeThePresentNodesOnly) {
   EXPECT_EQ(select_face_module_centres(lat, Face::ZMax).size(), 2u * 3);
   EXPECT_EQ(select_all(lat).size(), lat.num_present_nodes());
   EXPECT_EQ(select_box(lat, {3.0, 0.0, 3.0}, {4.0, 3.0, 4.0}).size(), 0u);
+  // A velocity on a node outside the body (corner (4, 0, 4), of the removed module (3, 0, 3)
+  // alone) is refused, the node named: it has no mass and no bar.
+  const index_t outside = lat.corner(4, 0, 4);
+  ASSERT_FALSE(lat.node_present(outside));
+  Conditions c;
+  c.velocities.push_back({{"far", {outside}}, kDofZ, {0, 0, 1}, TimeFunction{}});
+  try {
+    make_shaped(lat, unit_material(), c);
+    ADD_FAILURE() << "a velocity on a node outside the body was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("node " + std::to_string(outside) +
+                                         " is outside the body"),
+              std::string::npos)
+        << e.what();
+  }
   // The re-entrant faces x = 2 (z in [2, 4]) and z = 2 (x in [2, 4]) are surface, and so are
   // the box's faces; the corner nodes of the L's inside are not.
   Shape all;

@@ -42,6 +42,14 @@ template <class Law> std::array<double, kFamilies> elastic_limits(const BarTable
   return out;
 }
 
+// The bars of row r that the state arrays hold: [p0, p1) in a compact layout
+// (StepLayout::state_origin), all of them otherwise.
+inline std::pair<index_t, index_t> stored_bars(const SimulationCore& core, std::size_t r) {
+  const BarRow& row = core.layout.bar_rows[r];
+  return core.layout.compact() ? std::pair{row.p0, row.p1}
+                               : std::pair{index_t{0}, core.lat.family(row.family).ni};
+}
+
 // A row is "damaged" once any of its bars is not pristine (or is pre-cracked); rows of pristine
 // bars skip reading the state.
 template <class Law> void mark_damaged_rows(SimulationCore& core) {
@@ -56,8 +64,9 @@ template <class Law> void mark_damaged_rows(SimulationCore& core) {
   for (std::size_t r = 0; r < rows; ++r) {
     const index_t b0 = core.first_bar(r);
     const typename Law::Row constants = Law::row(core.table, core.layout.bar_rows[r].family, b0);
-    const auto states = core.state_rows<kStates>(b0);
-    for (index_t i = 0; i < core.lat.family(core.layout.bar_rows[r].family).ni; ++i) {
+    const auto states = core.template row_states<kStates>(r);
+    const auto [p0, p1] = stored_bars(core, r);
+    for (index_t i = p0; i < p1; ++i) {
       const Law law =
           per_bar ? Law::template at<true>(constants, i) : Law::template at<false>(constants, i);
       if (!law.pristine(Law::read(states.data(), i)))
@@ -72,27 +81,42 @@ template <class Law>
 void init_states(SimulationCore& core, const std::vector<index_t>& precracked) {
   constexpr std::size_t kStates = Law::kStateArrays.size();
   const index_t nb = core.lat.num_bars();
-  core.states.assign(kStates, std::vector<double>(nb));
+  core.states.assign(kStates, std::vector<double>(core.layout.state_count));
   const bool per_bar = core.table.per_bar();
   for (std::size_t r = 0; r < core.layout.bar_rows.size(); ++r) {
     const index_t b0 = core.first_bar(r);
     const typename Law::Row constants = Law::row(core.table, core.layout.bar_rows[r].family, b0);
-    const auto states = core.state_rows<kStates>(b0);
-    for (index_t i = 0; i < core.lat.family(core.layout.bar_rows[r].family).ni; ++i) {
+    const auto states = core.template row_states<kStates>(r);
+    const auto [p0, p1] = stored_bars(core, r);
+    for (index_t i = p0; i < p1; ++i) {
       const Law law =
           per_bar ? Law::template at<true>(constants, i) : Law::template at<false>(constants, i);
       Law::write(states.data(), i, law.initial());
     }
   }
+  // A compact layout's rows at rest, per family (the material's constants per family).
+  if (core.layout.compact())
+    for (int f = 0; f < kFamilies; ++f) {
+      const Law law = Law::template at<false>(Law::row(core.table, f, 0), 0);
+      std::array<double*, kStates> rest{};
+      for (std::size_t a = 0; a < kStates; ++a)
+        rest[a] = core.states[a].data() + core.layout.rest(f);
+      for (std::size_t i = 0; i < core.layout.rest_stride; ++i)
+        Law::write(rest.data(), static_cast<index_t>(i), law.initial());
+    }
   if constexpr (kCountsCycles<Law>)
     std::fill(core.states[Law::kLife].begin(), core.states[Law::kLife].end(), Law::kNewLife);
-  const auto all = core.state_rows<kStates>(0);
   for (index_t b : precracked) {
     if (b >= nb)
       throw InputError(fmt::format("pre-crack: bar {} does not exist (lattice has {})", b, nb));
-    Law::write(all.data(), b, Law::precracked());
+    // (A compact layout holds no state for an absent bar outside its row's [p0, p1): it has
+    // no stiffness to lose.)
+    if (!core.layout.state_stored(core.layout.state_index(core.lat, b)))
+      continue;
+    const auto at = core.template bar_states<kStates>(b);
+    Law::write(at.data(), 0, Law::precracked());
     if constexpr (kCountsCycles<Law>)
-      core.states[Law::kLife][b] = 0.0; // nothing left to count
+      at[Law::kLife][0] = 0.0; // nothing left to count
   }
 }
 
@@ -126,7 +150,8 @@ index_t visit_law_row(const SimulationCore& core, std::size_t r, F&& lane) {
   const double* __restrict ubx = core.ux.data() + row.b_slot;
   const double* __restrict uby = core.uy.data() + row.b_slot;
   const double* __restrict ubz = core.uz.data() + row.b_slot;
-  const std::array<const double*, kStates> states = core.state_rows<kStates>(b0);
+  const std::array<const double*, kStates> states = core.template row_states<kStates>(r);
+  const std::array<const double*, kStates> rest = core.template rest_states<kStates>(row.family);
   const double* __restrict kb = PerBar ? core.table.k_bar().data() + b0 : nullptr;
   const typename Law::Row constants = Law::row(core.table, row.family, b0);
   // Scalars in locals (the loop vectorises only so); EA = (k l0) factor, as BarTable's.
@@ -135,8 +160,21 @@ index_t visit_law_row(const SimulationCore& core, std::size_t r, F&& lane) {
   const double d0x = fi.d0.x, d0y = fi.d0.y, d0z = fi.d0.z;
   // A shaped body's area factors per bar (StepLayout::bar_code).
   const std::uint8_t* __restrict code =
-      core.layout.coded() ? core.layout.bar_code.data() + b0 : nullptr;
-  for (index_t i = 0; i < n; ++i) {
+      core.layout.coded()
+          ? core.layout.bar_code.data() + static_cast<std::size_t>(core.layout.state_origin[r])
+          : nullptr;
+  // A compact layout (StepLayout::row_window) holds the nodes of the bars [p0, p1) only; the
+  // row's other bars are absent (area factor 0), their stretch taken at rest.
+  const bool compact = core.layout.compact();
+  const index_t p0 = compact ? row.p0 : 0, p1 = compact ? row.p1 : n;
+  const Stretch at_rest_g = stretch(d0x, d0y, d0z, l0, inv_l0);
+  const auto at_rest = [&](index_t i0, index_t i1) {
+    for (index_t i = i0; i < i1; ++i)
+      lane(i, at_rest_g, Law::template at<PerBar>(constants, i), Law::read(rest.data(), 0), 0.0,
+           0.0);
+  };
+  at_rest(0, p0);
+  for (index_t i = p0; i < p1; ++i) {
     const Stretch g = stretch(d0x + (ubx[i] - uax[i]), d0y + (uby[i] - uay[i]),
                               d0z + (ubz[i] - uaz[i]), l0, inv_l0);
     const double factor = code ? code[i] * 0.25 : (i == 0 || i + 1 == n) ? end : inner;
@@ -144,6 +182,7 @@ index_t visit_law_row(const SimulationCore& core, std::size_t r, F&& lane) {
     lane(i, g, law, Law::read(states.data(), i), PerBar ? kb[i] : mat.k * factor,
          PerBar ? kb[i] * l0 : kl0 * factor);
   }
+  at_rest(p1, n);
   return n;
 }
 
@@ -170,8 +209,9 @@ Simulation::BarEnergies law_row_energies(const SimulationCore& core, std::size_t
   }
   if constexpr (kCountsCycles<Law>) {
     // What the row's bars whose lives ran out released then, and had dissipated before.
-    const double* released = core.states[Law::kReleased].data() + core.first_bar(r);
-    const double* before = core.states[Law::kDissipatedBefore].data() + core.first_bar(r);
+    const auto states = core.template row_states<Law::kStateArrays.size()>(r);
+    const double* released = states[Law::kReleased];
+    const double* before = states[Law::kDissipatedBefore];
     for (index_t i = 0; i < n; ++i) {
       sums.fatigue += released[i];
       sums.damage += before[i];
@@ -258,10 +298,17 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
     // (The forces in a loop of doubles alone, which GCC vectorises; the bytes apart.)
     double* __restrict f = force.data() + b0;
     const std::uint8_t* __restrict code =
-        core.layout.coded() ? core.layout.bar_code.data() + b0 : nullptr;
+        core.layout.coded()
+            ? core.layout.bar_code.data() + static_cast<std::size_t>(core.layout.state_origin[r])
+            : nullptr;
     int past = 0;
+    // (A compact layout holds the nodes of the bars [p0, p1) only: the others are absent.)
+    const index_t p0 = core.layout.compact() ? row.p0 : 0,
+                  p1 = core.layout.compact() ? row.p1 : n;
+    std::fill(f, f + p0, 0.0);
+    std::fill(f + p1, f + n, 0.0);
 #pragma omp simd reduction(+ : past)
-    for (index_t i = 0; i < n; ++i) {
+    for (index_t i = p0; i < p1; ++i) {
       const double dl = stretch(fi.d0.x + (ubx[i] - uax[i]), fi.d0.y + (uby[i] - uay[i]),
                                 fi.d0.z + (ubz[i] - uaz[i]), l0, inv_l0)
                             .dl;
@@ -294,11 +341,15 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
                                   : visit_law_row<Law, false>(core, r, values);
         const typename Law::Row constants =
             Law::row(core.table, core.layout.bar_rows[r].family, b0);
-        const auto states = core.state_rows<Law::kStateArrays.size()>(b0);
+        const auto states = core.template row_states<Law::kStateArrays.size()>(r);
+        const auto rest =
+            core.template rest_states<Law::kStateArrays.size()>(core.layout.bar_rows[r].family);
+        const auto [p0, p1] = stored_bars(core, r);
         for (index_t i = 0; i < n; ++i) {
           const Law law = per_bar ? Law::template at<true>(constants, i)
                                   : Law::template at<false>(constants, i);
-          st[i] = static_cast<std::uint8_t>(law.state(Law::read(states.data(), i)));
+          const auto s = i >= p0 && i < p1 ? Law::read(states.data(), i) : Law::read(rest.data(), 0);
+          st[i] = static_cast<std::uint8_t>(law.state(s));
         }
       });
 }
@@ -319,7 +370,7 @@ template <class Law> Law law_of(const SimulationCore& core, index_t bar) {
   return core.table.per_bar() ? Law::template at<true>(row, 0) : Law::template at<false>(row, 0);
 }
 template <class Law> typename Law::State bar_law_state(const SimulationCore& core, index_t bar) {
-  return Law::read(core.state_rows<Law::kStateArrays.size()>(bar).data(), 0);
+  return Law::read(core.template bar_states<Law::kStateArrays.size()>(bar).data(), 0);
 }
 
 template <class Law> BarState bar_state(const SimulationCore& core, index_t bar) {
@@ -338,8 +389,7 @@ template <class Law> double bar_force(const SimulationCore& core, index_t bar) {
 template <class Law> Vec3 node_force(const SimulationCore& core, index_t node) {
   const NodeAddress a = core.lat.node_address(node);
   RowLink links[kMaxRowLinks];
-  const int nl =
-      row_links(core.lat, core.layout.node_rows[core.node_row_of(node)], links, core.layout.slots);
+  const int nl = row_links(core.lat, core.layout.node_rows[core.node_row_of(node)], links);
   const std::size_t q = core.slot(node);
   Vec3 f;
   for (int l = 0; l < nl; ++l) {
@@ -347,7 +397,7 @@ template <class Law> Vec3 node_force(const SimulationCore& core, index_t node) {
     if (a.i < L.ilo || a.i >= L.ihi)
       continue;
     const auto bar = static_cast<index_t>(L.bar_base + a.i);
-    const auto o = static_cast<std::size_t>(L.other_base + a.i);
+    const std::size_t o = core.slot(static_cast<index_t>(L.other_base + a.i));
     const double rx = L.r0.x + (core.ux[o] - core.ux[q]), ry = L.r0.y + (core.uy[o] - core.uy[q]),
                  rz = L.r0.z + (core.uz[o] - core.uz[q]);
     const double l0 = core.lat.family(core.lat.bar_address(bar).family).l0;

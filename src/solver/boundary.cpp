@@ -31,16 +31,21 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
   }
   for (const NodalLoad& l : core.cond.loads)
     check_set(l.set, "load");
-  auto slots_of = [&](const NodeSet& set) {
+  auto slots_of = [&](const NodeSet& set, const char* what) {
     std::vector<std::size_t> q;
-    for (index_t n : set.nodes)
+    for (index_t n : set.nodes) {
+      if (core.lat.shaped() && !core.lat.node_present(n))
+        throw InputError(fmt::format("{} on node set \"{}\": node {} is outside the body (no "
+                                     "present module has it)",
+                                     what, set.name, n));
       q.push_back(core.slot(n));
+    }
     return q;
   };
   for (const ImposedVelocity& v : core.cond.velocities)
-    bc.velocity_slots.push_back(slots_of(v.set));
+    bc.velocity_slots.push_back(slots_of(v.set, "imposed velocity"));
   for (const NodalLoad& l : core.cond.loads)
-    bc.load_slots.push_back(slots_of(l.set));
+    bc.load_slots.push_back(slots_of(l.set, "load"));
   // A shaped body's nodes outside it: held (they have no mass and no bar with a stiffness).
   if (core.lat.shaped())
     for (index_t n = 0; n < nn; ++n)
@@ -56,7 +61,12 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
   }
   core.held.assign(core.layout.slot_count, 0);
   for (index_t n = 0; n < nn; ++n)
-    core.held[core.slot(n)] = held[n];
+    if (const std::size_t q = core.slot(n); core.layout.stored(q))
+      core.held[q] = held[n];
+  // (The block the absent nodes outside their rows' windows read: held, as they are.)
+  if (core.layout.compact())
+    std::fill(core.held.begin() + static_cast<std::ptrdiff_t>(core.layout.zero_slot),
+              core.held.end(), kDofAll);
   if (!core.cond.loads.empty()) {
     core.px.assign(core.layout.slot_count, 0.0);
     core.py.assign(core.layout.slot_count, 0.0);

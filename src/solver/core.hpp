@@ -126,17 +126,30 @@ struct SimulationCore {
     const BarRow& row = layout.bar_rows[r];
     return lat.bar(static_cast<Family>(row.family), 0, row.j, row.k);
   }
-  // The law's state arrays from bar b0 on.
-  template <std::size_t N> std::array<double*, N> state_rows(index_t b0) {
-    std::array<double*, N> p{};
-    for (std::size_t a = 0; a < N; ++a)
-      p[a] = states[a].data() + b0;
-    return p;
+  // The law's state arrays at bar row r's bar i = 0 (index i of the row: its bars [p0, p1) in
+  // a compact layout, all of them otherwise; StepLayout::state_origin), at bar `bar`, and at
+  // a family's bars in their initial state that a compact layout's absent bars read.
+  template <std::size_t N> std::array<double*, N> row_states(std::size_t r) {
+    return states_at<N>(*this, static_cast<std::size_t>(layout.state_origin[r]));
   }
-  template <std::size_t N> std::array<const double*, N> state_rows(index_t b0) const {
-    std::array<const double*, N> p{};
+  template <std::size_t N> std::array<const double*, N> row_states(std::size_t r) const {
+    return states_at<N>(*this, static_cast<std::size_t>(layout.state_origin[r]));
+  }
+  template <std::size_t N> std::array<double*, N> bar_states(index_t bar) {
+    return states_at<N>(*this, layout.state_index(lat, bar));
+  }
+  template <std::size_t N> std::array<const double*, N> bar_states(index_t bar) const {
+    return states_at<N>(*this, layout.state_index(lat, bar));
+  }
+  template <std::size_t N> std::array<const double*, N> rest_states(int family) const {
+    return states_at<N>(*this, layout.rest(family));
+  }
+
+private:
+  template <std::size_t N, class Self> static auto states_at(Self& self, std::size_t q) {
+    std::array<decltype(self.states[0].data()), N> p{};
     for (std::size_t a = 0; a < N; ++a)
-      p[a] = states[a].data() + b0;
+      p[a] = self.states[a].data() + q;
     return p;
   }
 };

@@ -31,7 +31,7 @@ template <class Law> void count_cycles(SimulationCore& core) {
           const BarRow& row = core.layout.bar_rows[r];
           const FamilyInfo& fi = core.lat.family(row.family);
           const index_t b0 = core.first_bar(r), n = fi.ni;
-          const std::array<double*, kStates> states = core.state_rows<kStates>(b0);
+          const std::array<double*, kStates> states = core.row_states<kStates>(r);
           double* __restrict turn = states[Law::kTurn];
           double* __restrict extreme = states[Law::kExtreme];
           double* __restrict life = states[Law::kLife];

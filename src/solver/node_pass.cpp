@@ -445,9 +445,7 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
     for (std::size_t r = begin; r < end; ++r) {
       const NodeRow& row = core.layout.node_rows[r];
       const index_t n = row.length;
-      const auto n0 =
-          static_cast<std::size_t>(row.centre ? core.layout.slots.centre(core.lat, row.j, row.k)
-                                              : core.layout.slots.corner(core.lat, row.j, row.k));
+      const auto n0 = static_cast<std::size_t>(core.layout.row_origin[r]);
       const double* __restrict ux = core.ux.data() + n0;
       const double* __restrict uy = core.uy.data() + n0;
       const double* __restrict uz = core.uz.data() + n0;

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <omp.h>
+#include <stdexcept>
 
 namespace ldem {
 
@@ -126,8 +127,16 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   for (index_t n = 0; n < c.lat.num_nodes(); ++n) {
     if (!(mass[n] > 0.0))
       mass[n] = 1.0;
-    c.mass[c.slot(n)] = mass[n];
-    c.inv_mass[c.slot(n)] = 1.0 / mass[n];
+    if (const std::size_t q = c.slot(n); c.layout.stored(q)) {
+      c.mass[q] = mass[n];
+      c.inv_mass[q] = 1.0 / mass[n];
+    }
+  }
+  // (The block the absent nodes outside their rows' windows read, StepLayout::zero_slot.)
+  if (c.layout.compact()) {
+    std::fill(c.mass.begin() + static_cast<std::ptrdiff_t>(c.layout.zero_slot), c.mass.end(), 1.0);
+    std::fill(c.inv_mass.begin() + static_cast<std::ptrdiff_t>(c.layout.zero_slot),
+              c.inv_mass.end(), 1.0);
   }
   for (AlignedVector<double>* u : {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz})
     u->assign(slots, 0.0);
@@ -336,6 +345,8 @@ void Simulation::node_states(index_t first, index_t count, Vec3* u, Vec3* v) con
 void Simulation::set_half_step_velocity(index_t node, Vec3 v) {
   SimulationCore& c = *core_;
   const std::size_t q = c.slot(node);
+  if (!c.layout.stored(q))
+    return; // an absent node stays at rest
   c.wx[q] = c.ux[q] - c.dt * v.x;
   c.wy[q] = c.uy[q] - c.dt * v.y;
   c.wz[q] = c.uz[q] - c.dt * v.z;
@@ -346,6 +357,8 @@ void Simulation::set_displacement(index_t node, Vec3 u) {
   c.forget_motion(node, 1);
   const Vec3 v = half_step_velocity(node);
   const std::size_t q = c.slot(node);
+  if (!c.layout.stored(q))
+    return; // an absent node stays at rest
   c.ux[q] = u.x;
   c.uy[q] = u.y;
   c.uz[q] = u.z;
@@ -370,20 +383,30 @@ void Simulation::assign_displacements(index_t first, index_t count, const double
   for (AlignedVector<double>* u : {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz})
     if ((u == &c.wx || u == &c.wy || u == &c.wz) == previous)
       c.for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
-        std::copy(in, in + run, u->begin() + q);
+        if (c.layout.stored(q)) // (an absent node stays at rest)
+          std::copy(in, in + run, u->begin() + static_cast<std::ptrdiff_t>(q));
         in += run;
       });
 }
 
 void Simulation::append_bar_states(std::size_t array, index_t first, index_t count,
                                    std::vector<double>& out) const {
-  const std::vector<double>& a = core_->states[array];
-  out.insert(out.end(), a.begin() + first, a.begin() + first + count);
+  const SimulationCore& c = *core_;
+  const std::vector<double>& a = c.states[array];
+  c.layout.for_each_state_run(c.lat, first, count, [&](std::size_t q, index_t, index_t run) {
+    const auto at = a.begin() + static_cast<std::ptrdiff_t>(q);
+    out.insert(out.end(), at, at + run);
+  });
 }
 
 void Simulation::assign_bar_states(std::size_t array, index_t first, index_t count,
                                    const double* in) {
-  std::copy(in, in + count, core_->states[array].begin() + first);
+  SimulationCore& c = *core_;
+  c.layout.for_each_state_run(c.lat, first, count, [&](std::size_t q, index_t, index_t run) {
+    if (c.layout.state_stored(q)) // (an absent bar keeps its initial state)
+      std::copy(in, in + run, c.states[array].begin() + static_cast<std::ptrdiff_t>(q));
+    in += run;
+  });
 }
 
 namespace {
@@ -424,16 +447,21 @@ void Simulation::assign_state(std::size_t array, index_t first, index_t count, c
     c.forget_motion(first, count);
   AlignedVector<double>* u[6] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
   c.for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
-    std::copy(in, in + run, u[array]->begin() + q);
+    if (c.layout.stored(q)) // (an absent node stays at rest)
+      std::copy(in, in + run, u[array]->begin() + static_cast<std::ptrdiff_t>(q));
     in += run;
   });
 }
 
 double Simulation::bar_state_value(std::size_t array, index_t bar) const {
-  return core_->states[array][bar];
+  return core_->states[array][core_->layout.state_index(core_->lat, bar)];
 }
 
 std::span<double> Simulation::bar_state_array(std::size_t array) {
+  // (By bar id: a layout of a law that counts cycles, whose material varies per bar; a compact
+  // layout is of one material.)
+  if (core_->layout.compact())
+    throw std::logic_error("bar_state_array: the states of a compact layout are not by bar id");
   return core_->states[array];
 }
 
@@ -627,7 +655,8 @@ double Simulation::bytes_per_module() const {
            bytes(c.row_fast) + bytes(c.line_fast) + bytes(c.row_ratio) + bytes(l.row_inv_lp) +
            bytes(l.row_watch) + bytes(l.row_first_centre) + bytes(l.row_whole) +
            bytes(l.bar_row_nodes) + bytes(c.node_row_motion) + bytes(l.edge_lanes) +
-           bytes(l.bar_code) + bytes(l.row_span);
+           bytes(l.bar_code) + bytes(l.row_span) + bytes(l.row_origin) + bytes(l.row_window) +
+           bytes(l.state_origin) + bytes(l.bar_row_at);
   for (const auto& b : c.plane_buffers)
     total += bytes(b);
   for (const auto& b : c.line_stores)

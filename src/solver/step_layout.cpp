@@ -3,6 +3,7 @@
 #include "util/aligned.hpp"
 
 #include <cmath>
+#include <limits>
 
 namespace ldem {
 
@@ -183,6 +184,92 @@ void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
   }
 }
 
+// A shaped body's node rows kept to their windows (StepLayout::row_window), the rows one after
+// another in the step's order, and the slots the kernels start from moved with them.
+void compact_rows(StepLayout& out, const Lattice& lat) {
+  const std::size_t nr = out.node_rows.size();
+  std::vector<std::array<std::int64_t, 2>> w(nr, {std::numeric_limits<std::int64_t>::max(), 0});
+  const auto widen = [&](std::size_t r, std::int64_t a, std::int64_t b) {
+    if (a < b)
+      w[r] = {std::min(w[r][0], a), std::max(w[r][1], b)};
+  };
+  for (std::size_t r = 0; r < nr; ++r)
+    widen(r, out.row_span[r].from, std::min(out.row_span[r].to, out.row_span[r].n));
+  // The nodes of each bar row's bars [p0, p1) (first nodes at a_first + i, second at b_first + i).
+  const auto first_node = [&](std::size_t br, int end) {
+    const BarRow& row = out.bar_rows[br];
+    const FamilyInfo& fi = lat.family(row.family);
+    return end == 0 ? fi.a.at(0, row.j, row.k) : fi.b.at(0, row.j, row.k);
+  };
+  for (std::size_t br = 0; br < out.bar_rows.size(); ++br)
+    for (int end = 0; end < 2; ++end) {
+      const std::size_t r = out.bar_row_nodes[br][static_cast<std::size_t>(end)];
+      const std::int64_t at = first_node(br, end) - out.node_rows[r].first;
+      widen(r, out.bar_rows[br].p0 + at, out.bar_rows[br].p1 + at);
+    }
+  // Whole vectors of 8 from a cache line on; a row starts no earlier than 8 slots past its
+  // window's start, so that every row's slot of i = 0 (and of i = -1, where a link starts) is
+  // inside the arrays.
+  out.row_window.resize(nr);
+  out.row_origin.resize(nr);
+  std::int64_t at = 8;
+  for (std::size_t r = 0; r < nr; ++r) {
+    if (w[r][0] >= w[r][1]) {
+      out.row_window[r] = {0, 0};
+      out.row_origin[r] = 8;
+      continue;
+    }
+    const std::int64_t from = w[r][0] / 8 * 8, to = (w[r][1] + 7) / 8 * 8;
+    at = std::max(at, from + 8);
+    out.row_window[r] = {from, to};
+    out.row_origin[r] = at - from;
+    at += to - from;
+  }
+  out.zero_slot = static_cast<std::size_t>(at);
+  out.slot_count = out.zero_slot + round_up_to_line(lat.nx() + 1ull) + 8;
+  for (std::size_t br = 0; br < out.bar_rows.size(); ++br) {
+    const auto slot0 = [&](int end) {
+      const std::size_t r = out.bar_row_nodes[br][static_cast<std::size_t>(end)];
+      return static_cast<std::size_t>(out.row_origin[r] + first_node(br, end) -
+                                      out.node_rows[r].first);
+    };
+    out.bar_rows[br].a_slot = slot0(0);
+    out.bar_rows[br].b_slot = slot0(1);
+  }
+  // Each bar row's bars [p0, p1) in the state arrays and bar_code (from an index no less than
+  // p0, so that every row's index of i = 0 is one), then the rows at rest.
+  std::vector<std::uint8_t> code;
+  out.state_origin.resize(out.bar_rows.size());
+  std::int64_t q = 0;
+  for (std::size_t br = 0; br < out.bar_rows.size(); ++br) {
+    const BarRow& row = out.bar_rows[br];
+    q = std::max<std::int64_t>(q, row.p0);
+    out.state_origin[br] = q - row.p0;
+    const std::size_t b0 = static_cast<std::size_t>(lat.bar(static_cast<Family>(row.family), 0,
+                                                            row.j, row.k));
+    code.resize(static_cast<std::size_t>(q + (row.p1 - row.p0)), 0);
+    std::copy(out.bar_code.begin() + static_cast<std::ptrdiff_t>(b0 + row.p0),
+              out.bar_code.begin() + static_cast<std::ptrdiff_t>(b0 + row.p1),
+              code.begin() + q);
+    q += row.p1 - row.p0;
+  }
+  out.rest_state = static_cast<std::size_t>(q);
+  out.rest_stride = lat.nx() + 9ull; // (a row has at most nx + 1 bars)
+  out.state_count = out.rest_state + kFamilies * out.rest_stride;
+  code.resize(out.state_count, 0);
+  out.bar_code = std::move(code);
+  for (std::size_t r = 0; r < nr; ++r) {
+    RowLink links[kMaxRowLinks];
+    const int nl = row_links(lat, out.node_rows[r], links);
+    for (int l = 0; l < nl; ++l) {
+      const std::size_t o = out.node_row_of(lat, static_cast<index_t>(links[l].other_base +
+                                                                     links[l].ilo));
+      out.link_ref[kMaxRowLinks * r + static_cast<std::size_t>(l)].other =
+          out.row_origin[o] + (links[l].other_base - out.node_rows[o].first);
+    }
+  }
+}
+
 } // namespace
 
 StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
@@ -311,6 +398,23 @@ StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
     for (std::size_t r = line.bar_begin; r < line.bar_end; ++r)
       n += lat.family(out.bar_rows[r].family).ni;
     out.line_store_stride = std::max(out.line_store_stride, n);
+  }
+  if (coded && kTrimRows) {
+    out.bar_row_at = std::move(row_at);
+    compact_rows(out, lat);
+  } else {
+    out.state_count = static_cast<std::size_t>(lat.num_bars());
+    out.state_origin.resize(out.bar_rows.size());
+    for (std::size_t r = 0; r < out.bar_rows.size(); ++r) {
+      const BarRow& row = out.bar_rows[r];
+      out.state_origin[r] = lat.bar(static_cast<Family>(row.family), 0, row.j, row.k);
+    }
+    out.row_origin.resize(out.node_rows.size());
+    for (std::size_t r = 0; r < out.node_rows.size(); ++r) {
+      const NodeRow& row = out.node_rows[r];
+      out.row_origin[r] =
+          row.centre ? out.slots.centre(lat, row.j, row.k) : out.slots.corner(lat, row.j, row.k);
+    }
   }
   return out;
 }

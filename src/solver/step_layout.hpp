@@ -116,7 +116,80 @@ struct StepLayout {
   std::vector<double> row_inv_lp, row_watch;
   std::size_t line_store_stride = 0; // the most bars a line has
 
+  // Per node row (node_rows' order), the slot of its node i = 0: slot = row_origin + i.
+  std::vector<std::int64_t> row_origin;
+  // A shaped body of one material (the AVX-512 kernels): each node row keeps in the node
+  // arrays only its window [row_window[r][0], row_window[r][1]), whole vectors that hold every
+  // node a kernel reads (its present nodes, and the nodes of the bars [p0, p1) of its bar
+  // rows); its other nodes, absent and at rest, read a block of zeros from zero_slot on (with
+  // mass 1 and every DOF held, as an absent node has), which nothing writes. Empty otherwise.
+  std::vector<std::array<std::int64_t, 2>> row_window;
+  std::size_t zero_slot = 0;
+  bool compact() const { return !row_window.empty(); }
+  // Per bar row, the index in the law's state arrays and in bar_code of its bar i = 0 (its
+  // bar ids in a box): index = state_origin + i. A compact layout keeps there each bar row's
+  // bars [p0, p1) only, and from rest_state on a row of bars in their initial state (and code
+  // 0) per family (rest(f)), which its other bars (absent) read and nothing writes.
+  // state_count: the arrays' length.
+  std::vector<std::int64_t> state_origin;
+  std::size_t state_count = 0, rest_state = 0, rest_stride = 0;
+  std::size_t rest(int family) const {
+    return rest_state + rest_stride * static_cast<std::size_t>(family);
+  }
+  // The bar row of (family f, j, k), at (k (ny + 1) + j) kFamilies + f.
+  std::vector<std::uint32_t> bar_row_at;
+  std::size_t state_index(const Lattice& lat, index_t bar) const {
+    if (!compact())
+      return static_cast<std::size_t>(bar);
+    const BarAddress a = lat.bar_address(bar);
+    const BarRow& row = bar_rows[bar_row_at[(a.k * (lat.ny() + 1ull) + a.j) * kFamilies +
+                                            static_cast<std::size_t>(a.family)]];
+    return a.i >= row.p0 && a.i < row.p1
+               ? static_cast<std::size_t>(state_origin[&row - bar_rows.data()] + a.i)
+               : rest(row.family);
+  }
+  // visit(first index, first bar, count) for the runs of bars [first, first + count) that lie
+  // in one bar row and, in a compact layout, in or outside its [p0, p1) (outside, the first
+  // index is rest(family), to be read only).
+  template <class F>
+  void for_each_state_run(const Lattice& lat, index_t first, index_t count, F&& visit) const {
+    if (!compact()) {
+      visit(static_cast<std::size_t>(first), first, count);
+      return;
+    }
+    const index_t end = first + count;
+    for (index_t b = first; b < end;) {
+      const BarAddress a = lat.bar_address(b);
+      const std::size_t r = bar_row_at[(a.k * (lat.ny() + 1ull) + a.j) * kFamilies +
+                                       static_cast<std::size_t>(a.family)];
+      const std::int64_t i = a.i, n = std::min<std::int64_t>(end - b, lat.family(a.family).ni - i);
+      const std::int64_t w0 = std::clamp<std::int64_t>(bar_rows[r].p0, i, i + n),
+                         w1 = std::clamp<std::int64_t>(bar_rows[r].p1, w0, i + n);
+      if (w0 > i)
+        visit(rest(bar_rows[r].family), b, static_cast<index_t>(w0 - i));
+      if (w1 > w0)
+        visit(static_cast<std::size_t>(state_origin[r] + w0), static_cast<index_t>(b + (w0 - i)),
+              static_cast<index_t>(w1 - w0));
+      if (i + n > w1)
+        visit(rest(bar_rows[r].family), static_cast<index_t>(b + (w1 - i)),
+              static_cast<index_t>(i + n - w1));
+      b = static_cast<index_t>(b + n);
+    }
+  }
+  // Whether state index q holds a bar of its own (not the row at rest).
+  bool state_stored(std::size_t q) const { return !compact() || q < rest_state; }
+
+  // Whether slot q holds a node of its own (not the block of zeros).
+  bool stored(std::size_t q) const { return !compact() || q < zero_slot; }
+
   std::size_t slot(const Lattice& lat, index_t node) const {
+    if (compact()) {
+      const std::size_t r = node_row_of(lat, node);
+      const std::int64_t i = node - node_rows[r].first;
+      return i >= row_window[r][0] && i < row_window[r][1]
+                 ? static_cast<std::size_t>(row_origin[r] + i)
+                 : zero_slot;
+    }
     const index_t nc = lat.num_corners(), nx = lat.nx();
     if (node < nc)
       return static_cast<std::size_t>(slots.corner_row) * (node / (nx + 1)) + node % (nx + 1);
@@ -124,7 +197,8 @@ struct StepLayout {
     return static_cast<std::size_t>(slots.centre_first + slots.centre_row * (m / nx)) + m % nx;
   }
   // visit(first slot, first node, count) for the runs of nodes [first, first + count) that lie
-  // in one row.
+  // in one row (and, in a compact layout, in or outside its window: outside, the first slot is
+  // zero_slot, to be read only).
   template <class F>
   void for_each_run(const Lattice& lat, index_t first, index_t count, F&& visit) const {
     const index_t nc = lat.num_corners(), end = first + count;
@@ -132,7 +206,21 @@ struct StepLayout {
       const index_t row = n < nc ? lat.nx() + 1 : lat.nx();
       const index_t i = n < nc ? n % row : (n - nc) % row;
       const index_t run = std::min(end - n, row - i);
-      visit(slot(lat, n), n, run);
+      if (!compact()) {
+        visit(slot(lat, n), n, run);
+      } else {
+        // The run's parts before, inside and after the row's window.
+        const std::size_t r = node_row_of(lat, n);
+        const std::int64_t w0 = std::clamp<std::int64_t>(row_window[r][0], i, i + run),
+                           w1 = std::clamp<std::int64_t>(row_window[r][1], w0, i + run);
+        if (w0 > i)
+          visit(zero_slot, n, static_cast<index_t>(w0 - i));
+        if (w1 > w0)
+          visit(static_cast<std::size_t>(row_origin[r] + w0), static_cast<index_t>(n + (w0 - i)),
+                static_cast<index_t>(w1 - w0));
+        if (i + run > w1)
+          visit(zero_slot, static_cast<index_t>(n + (w1 - i)), static_cast<index_t>(i + run - w1));
+      }
       n += run;
     }
   }
