@@ -56,4 +56,17 @@ inline NodeSet face(const Lattice& lat, Face f) {
   return make_node_set(face_name(f), select_face(lat, f), "face " + face_name(f));
 }
 
+// Every state array of a simulation by node and bar number, value by value (a checkpoint's
+// content).
+inline std::vector<std::vector<double>> all_state(const Simulation& sim) {
+  std::vector<std::vector<double>> out;
+  const std::vector<Simulation::NamedArray> arrays = sim.state_arrays();
+  for (std::size_t a = 0; a < arrays.size(); ++a) {
+    out.emplace_back();
+    sim.append_state(a, 0, arrays[a].per_bar ? sim.lattice().num_bars() : sim.lattice().num_nodes(),
+                     out.back());
+  }
+  return out;
+}
+
 } // namespace ldem::testing

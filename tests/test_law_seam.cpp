@@ -19,6 +19,7 @@
 namespace ldem {
 namespace {
 
+using testing::all_state;
 using testing::make_sim;
 using testing::unit_material;
 
@@ -212,18 +213,6 @@ BuiltCase recording_case(const LawKernels& law) {
   for (index_t n = 0; n < c.lattice->num_nodes(); ++n)
     c.sim->set_half_step_velocity(n, {u(rng), u(rng), u(rng)});
   return c;
-}
-
-// Every state array of a simulation, value by value.
-std::vector<std::vector<double>> all_state(const Simulation& sim) {
-  std::vector<std::vector<double>> out;
-  const std::vector<Simulation::NamedArray> arrays = sim.state_arrays();
-  for (std::size_t a = 0; a < arrays.size(); ++a) {
-    out.emplace_back();
-    sim.append_state(a, 0, arrays[a].per_bar ? sim.lattice().num_bars() : sim.lattice().num_nodes(),
-                     out.back());
-  }
-  return out;
 }
 
 // A law's state, declared once in its kStateArrays, is saved by name without any code of the

@@ -25,6 +25,7 @@
 namespace ldem {
 namespace {
 
+using testing::all_state;
 using testing::make_sim;
 using testing::minus_energy_gradient;
 using testing::unit_material;
@@ -379,18 +380,6 @@ TEST(ShapedBody, TheFastPathThreadsAndBlocksChangeNoResult) {
         }
       }
   }
-}
-
-// Every state array of a simulation by node and bar number (a checkpoint's content).
-std::vector<std::vector<double>> all_state(const Simulation& sim) {
-  std::vector<std::vector<double>> out;
-  const std::vector<Simulation::NamedArray> arrays = sim.state_arrays();
-  for (std::size_t a = 0; a < arrays.size(); ++a) {
-    out.emplace_back();
-    sim.append_state(a, 0, arrays[a].per_bar ? sim.lattice().num_bars() : sim.lattice().num_nodes(),
-                     out.back());
-  }
-  return out;
 }
 
 // A shaped body of one material keeps in its node and state arrays only what its kernels read
