@@ -143,6 +143,24 @@ TEST(CaseFile, KeysThatDoNotApplyAreRefused) {
   EXPECT_NE(e.find("probe[0].at: does not apply to a \"reaction\" probe (its keys: name, kind, "
                    "set, component)"),
             std::string::npos)
+      << e;  // A gauge's end is a point or a node set, one of the two; a strain has no component.
+  const std::string probe = kGood + "\n[[probe]]\nname = \"g\"\n";
+  e = error_of(probe + "kind = \"displacement\"\nat = [0, 0, 0]\nset = \"top\"\n");
+  EXPECT_NE(e.find("probe[0].set: expected either at = [x, y, z] or set = \"<node set>\" for a "
+                   "\"displacement\" probe, got both"),
+            std::string::npos)
+      << e;
+  e = error_of(probe + "kind = \"opening\"\nfrom = [0, 0, 0]\n");
+  EXPECT_NE(e.find("probe[0].to: expected either to = [x, y, z] or to_set = \"<node set>\" for an "
+                   "\"opening\" probe, got neither"),
+            std::string::npos)
+      << e;
+  e = error_of(probe + "kind = \"strain\"\nfrom = [0, 0, 0]\nto_set = \"bottom\"\n");
+  EXPECT_NE(e.find("probe[0].to_set: expected the name of a [[node_set]], got \"bottom\""),
+            std::string::npos)
+      << e;
+  e = error_of(probe + "kind = \"strain\"\nfrom = [0, 0, 0]\nto = [0, 0, 1]\ncomponent = \"x\"\n");
+  EXPECT_NE(e.find("probe[0].component: does not apply to a \"strain\" probe"), std::string::npos)
       << e;
 }
 

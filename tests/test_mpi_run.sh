@@ -49,6 +49,9 @@ sed -e 's/^end = .*/end = 1.2e-3/; s/^modules = .*/modules = [40, 4, 20]/' \
   -e 's/^E = .*/E = { type = "weibull", mean = 35.0e9, cv = 0.1, seed = 3 }/' \
   -e 's/^rho = .*/rho = { type = "weibull", mean = 2400.0, cv = 0.05, seed = 4, correlation_length = 0.01 }/' \
   "$SRC/cases/tutorial/notched_plate.toml" >"$T/thick.toml"
+# (with gauges whose nodes lie on several processes: the top's mean displacement, an
+# extensometer across the z cut and an opening across the y cut)
+printf '\n[[probe]]\nname = "lvdt"\nkind = "displacement"\nset = "top"\n\n[[probe]]\nname = "extensometer"\nkind = "strain"\nfrom = [0.15, 0.01, 0.03]\nto = [0.15, 0.01, 0.07]\n\n[[probe]]\nname = "across"\nkind = "opening"\nfrom = [0.18, 0.0, 0.06]\nto = [0.18, 0.02, 0.06]\ncomponent = "y"\n' >>"$T/thick.toml"
 "$LDEM" run "$T/thick.toml" --out "$T/thick-1" --no-plot --threads 1 >/dev/null 2>"$T/err" ||
   bad "thick plate on one process: $(cat "$T/err")"
 for grid in ${THICK_GRIDS:-2x1 3x1 2x2}; do

@@ -337,6 +337,61 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
                                       [&] { return traction_weights(s, l, lat); })});
     }
     check_conditions_agree(s, c.sets, lat);
+    // A gauge's end: the present node nearest a point, or a node set's nodes; and its mean
+    // position.
+    const auto gauge_end = [&](const std::optional<Vec3>& point, const std::string& set,
+                               std::vector<index_t>& nodes) {
+      if (point) {
+        index_t best = 0;
+        double d_best = INFINITY;
+        for (index_t n = 0; n < lat.num_nodes(); ++n) {
+          if (!lat.node_present(n))
+            continue;
+          const Vec3 x = lat.position(n);
+          const double d = (x.x - point->x) * (x.x - point->x) +
+                           (x.y - point->y) * (x.y - point->y) + (x.z - point->z) * (x.z - point->z);
+          if (d < d_best) {
+            d_best = d;
+            best = n;
+          }
+        }
+        nodes = {best};
+      } else {
+        nodes = set_named(c.sets, set).nodes;
+      }
+      Vec3 m{0.0, 0.0, 0.0};
+      for (index_t n : nodes) {
+        const Vec3 x = lat.position(n);
+        m = {m.x + x.x, m.y + x.y, m.z + x.z};
+      }
+      const double k = 1.0 / static_cast<double>(nodes.size());
+      return Vec3{m.x * k, m.y * k, m.z * k};
+    };
+    for (std::size_t i = 0; i < s.probes.size(); ++i) {
+      const ProbeSpec& p = s.probes[i];
+      BuiltCase::Gauge g;
+      if (p.kind == ProbeSpec::Kind::Displacement) {
+        gauge_end(p.has_at ? std::optional<Vec3>(p.at) : std::nullopt, p.set, g.to);
+        g.component = p.component;
+      } else if (p.kind == ProbeSpec::Kind::Opening || p.kind == ProbeSpec::Kind::Strain) {
+        const Vec3 a = gauge_end(p.from.point, p.from.set, g.from);
+        const Vec3 b = gauge_end(p.to.point, p.to.set, g.to);
+        if (p.kind == ProbeSpec::Kind::Opening) {
+          g.component = p.component;
+        } else {
+          const Vec3 d{b.x - a.x, b.y - a.y, b.z - a.z};
+          const double l = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+          if (!(l > 0.0))
+            throw InputError(fmt::format(
+                "{}: probe[{}] (\"{}\"): expected a strain gauge with two ends apart, got both "
+                "ends at [{}, {}, {}] (give from and to, or from_set and to_set, that differ)",
+                c.path, i, p.name, a.x, a.y, a.z));
+          g.dir = {d.x / l, d.y / l, d.z / l};
+          g.scale = 1.0 / l;
+        }
+      }
+      c.probe_gauges.push_back(std::move(g));
+    }
     for (const ProbeSpec& p : s.probes) {
       index_t best = 0;
       if (p.kind == ProbeSpec::Kind::BarForce) {
@@ -685,6 +740,40 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
       t.insert("kind", "reaction");
       t.insert("set", p.set);
       t.insert("component", std::string(1, static_cast<char>('x' + p.component)));
+    } else if (p.kind == ProbeSpec::Kind::Displacement || p.kind == ProbeSpec::Kind::Opening ||
+               p.kind == ProbeSpec::Kind::Strain) {
+      // The gauge as found: each end's point or set, and the node a point took.
+      const BuiltCase::Gauge& g = c.probe_gauges[i];
+      const auto node_of = [&](const std::vector<index_t>& nodes) {
+        return toml::table{{"node", static_cast<std::int64_t>(nodes[0])},
+                           {"position", vec(c.lattice->position(nodes[0]))}};
+      };
+      if (p.kind == ProbeSpec::Kind::Displacement) {
+        t.insert("kind", "displacement");
+        if (p.has_at) {
+          t.insert("at", vec(p.at));
+          t.insert("node", node_of(g.to));
+        } else {
+          t.insert("set", p.set);
+        }
+      } else {
+        t.insert("kind", p.kind == ProbeSpec::Kind::Opening ? "opening" : "strain");
+        const auto end = [&](const ProbeSpec::End& e, const char* point, const char* set,
+                             const std::vector<index_t>& nodes) {
+          if (e.point) {
+            t.insert(point, vec(*e.point));
+            t.insert(std::string(point) + "_node", node_of(nodes));
+          } else {
+            t.insert(set, e.set);
+          }
+        };
+        end(p.from, "from", "from_set", g.from);
+        end(p.to, "to", "to_set", g.to);
+        if (p.kind == ProbeSpec::Kind::Strain)
+          t.insert("gauge_length", 1.0 / g.scale);
+      }
+      if (p.kind != ProbeSpec::Kind::Strain)
+        t.insert("component", std::string(1, static_cast<char>('x' + p.component)));
     } else {
       t.insert("kind", "load");
       t.insert("load", p.load);

@@ -27,6 +27,17 @@ struct BuiltCase {
   std::vector<index_t> lifeless;
   std::vector<CutResult> cuts;
   std::vector<index_t> probe_bars; // per probe: the bar of a bar_force probe
+  // Per probe of kind displacement, opening or strain (empty for the others): the value is
+  // scale * (mean over `to` of term(u) - mean over `from` of term(u)), term(u) the component
+  // `component` of u or, for component < 0, u . dir (probe_term). A displacement probe has no
+  // `from`.
+  struct Gauge {
+    std::vector<index_t> from, to;
+    int component = -1;
+    Vec3 dir;
+    double scale = 1.0;
+  };
+  std::vector<Gauge> probe_gauges;
   std::vector<std::string> warnings;
   // [[geometry]]: modules removed as hinged pieces, and the pieces of the body.
   std::uint64_t hinged_modules = 0, pieces = 1;
@@ -53,6 +64,17 @@ BarFields case_fields(const CaseSpec& s, const Lattice& whole, const std::vector
 
 // The node set named `name` among `sets`; throws InputError when there is none.
 const NodeSet& set_named(const std::vector<NodeSet>& sets, const std::string& name);
+// A gauge probe's term of one node of displacement u (BuiltCase::Gauge).
+inline double probe_term(const BuiltCase::Gauge& g, Vec3 u) {
+  if (g.component >= 0)
+    return g.component == 0 ? u.x : g.component == 1 ? u.y : u.z;
+  return u.x * g.dir.x + u.y * g.dir.y + u.z * g.dir.z;
+}
+// The gauge's value from the sums of its terms over `from` and over `to`, each in its order.
+inline double gauge_value(const BuiltCase::Gauge& g, double sum_from, double sum_to) {
+  const double a = g.from.empty() ? 0.0 : sum_from / static_cast<double>(g.from.size());
+  return g.scale * (sum_to / static_cast<double>(g.to.size()) - a);
+}
 
 // Throws InputError unless the case's time.end holds at least one step of dt.
 void check_end_time(const BuiltCase& c, double dt);

@@ -248,6 +248,13 @@ void DistributedBody::append_probe_terms(std::vector<double>& out) const {
       for (index_t n : set_named(c_.sets, p.set).nodes)
         if (node_owner(sub, whole, n) == sub.rank)
           out.push_back(reaction_term(sim, run_->local_node(whole.node_address(n)), p.component));
+    } else if (p.kind != ProbeSpec::Kind::BarForce && p.kind != ProbeSpec::Kind::Load) {
+      const BuiltCase::Gauge& g = c_.probe_gauges[i];
+      for (const auto* nodes : {&g.from, &g.to})
+        for (index_t n : *nodes)
+          if (node_owner(sub, whole, n) == sub.rank)
+            out.push_back(
+                probe_term(g, sim.displacement(run_->local_node(whole.node_address(n)))));
     }
   }
   close_list(out, at);
@@ -351,8 +358,16 @@ void DistributedBody::read_report(bool report) {
     } else if (p.kind == ProbeSpec::Kind::Reaction) {
       for (index_t n : set_named(c_.sets, p.set).nodes)
         probes_[i] -= *probe_terms[static_cast<std::size_t>(node_owner(sub, whole, n))]++;
-    } else {
+    } else if (p.kind == ProbeSpec::Kind::Load) {
       probes_[i] = load_probe(p, t);
+    } else {
+      // A gauge: each end's terms in its nodes' order, as one process sums them.
+      const BuiltCase::Gauge& g = c_.probe_gauges[i];
+      double sums[2] = {0.0, 0.0};
+      for (int e = 0; e < 2; ++e)
+        for (index_t n : e == 0 ? g.from : g.to)
+          sums[e] += *probe_terms[static_cast<std::size_t>(node_owner(sub, whole, n))]++;
+      probes_[i] = gauge_value(g, sums[0], sums[1]);
     }
   }
 }

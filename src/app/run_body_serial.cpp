@@ -62,8 +62,17 @@ std::vector<double> SerialBody::probes() const {
       // The support force that holds the set: minus the bar forces and loads on its nodes.
       for (index_t n : set_named(c_.sets, p.set).nodes)
         values[i] -= reaction_term(sim, n, p.component);
-    else
+    else if (p.kind == ProbeSpec::Kind::Load)
       values[i] = load_probe(p, sim.time());
+    else {
+      // A gauge: its terms summed over each end's nodes in order.
+      const BuiltCase::Gauge& g = c_.probe_gauges[i];
+      double sums[2] = {0.0, 0.0};
+      for (int e = 0; e < 2; ++e)
+        for (index_t n : e == 0 ? g.from : g.to)
+          sums[e] += probe_term(g, sim.displacement(n));
+      values[i] = gauge_value(g, sums[0], sums[1]);
+    }
   }
   return values;
 }

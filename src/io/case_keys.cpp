@@ -165,10 +165,14 @@ const std::vector<KeyDecl>& case_keys() {
     {"analysis", "fatigue_width", "float", "-", "m", 0, kInf, true, false, "", "Default the body's size along the crack. Width b of the single-edge-cracked plate in Delta K = Delta sigma sqrt(pi a) F(a/b)."},
 
     {"probe", "name", "string", "required", "", -kInf, kInf, false, false, "", "Column name in probes.csv."},
-    {"probe", "kind", "string", "required", "", -kInf, kInf, false, false, "\"bar_force\", \"reaction\", \"load\"", "What to record."},
-    {"probe", "at", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "bar_force: axial force [N] of the bar whose centre is nearest to this point."},
-    {"probe", "set", "string", "-", "", -kInf, kInf, false, false, "", "reaction: the static support force on the set [N]: minus the sum of the bar forces and loads on its nodes, the whole support force on held DOF; on imposed-velocity DOF without the driven nodes' inertia and damping (docs/model.md, 6)."},
-    {"probe", "component", "string", "\"z\"", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "reaction: component."},
+    {"probe", "kind", "string", "required", "", -kInf, kInf, false, false, "\"bar_force\", \"reaction\", \"load\", \"displacement\", \"opening\", \"strain\"", "What to record."},
+    {"probe", "at", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "bar_force: axial force [N] of the bar whose centre is nearest to this point. displacement: the displacement [m] of the body's node nearest to this point (an LVDT)."},
+    {"probe", "set", "string", "-", "", -kInf, kInf, false, false, "", "reaction: the static support force on the set [N]: minus the sum of the bar forces and loads on its nodes, the whole support force on held DOF; on imposed-velocity DOF without the driven nodes' inertia and damping (docs/model.md, 6). displacement (instead of at): the mean displacement [m] of the set's nodes."},
+    {"probe", "component", "string", "\"z\"", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "reaction, displacement, opening: component."},
+    {"probe", "from", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "opening, strain: the gauge's first end, the body's node nearest to this point (or give from_set)."},
+    {"probe", "from_set", "string", "-", "", -kInf, kInf, false, false, "", "opening, strain: the gauge's first end, the mean over this node set's nodes (their mean position for the gauge length)."},
+    {"probe", "to", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "opening, strain: the gauge's second end, the node nearest to this point (or give to_set). opening: u(to) - u(from) along the component [m] (a CMOD or crack-opening gauge); strain: (u(to) - u(from)) . d / l, d the unit vector from the first end's position to the second's and l their distance (an extensometer)."},
+    {"probe", "to_set", "string", "-", "", -kInf, kInf, false, false, "", "opening, strain: the gauge's second end, the mean over this node set's nodes."},
     {"probe", "load", "string", "-", "", -kInf, kInf, false, false, "", "load: name of the load whose total force [N] (component along its direction) is recorded."},
   };
   return keys;

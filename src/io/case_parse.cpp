@@ -1021,14 +1021,57 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
                            "\"{}\" again",
                            p.name));
     const std::string kind = r.get_string(t, "probe", "kind", w);
-    const std::string what = fmt::format("a \"{}\" probe", kind);
+    const std::string what = fmt::format("{} \"{}\" probe", kind[0] == 'o' ? "an" : "a", kind);
     if (kind == "bar_force")
       r.only(t, w, what, {"name", "kind", "at"});
     else if (kind == "reaction")
       r.only(t, w, what, {"name", "kind", "set", "component"});
+    else if (kind == "displacement")
+      r.only(t, w, what, {"name", "kind", "at", "set", "component"});
+    else if (kind == "opening")
+      r.only(t, w, what, {"name", "kind", "from", "from_set", "to", "to_set", "component"});
+    else if (kind == "strain")
+      r.only(t, w, what, {"name", "kind", "from", "from_set", "to", "to_set"});
     else
       r.only(t, w, what, {"name", "kind", "load"});
-    if (kind == "bar_force") {
+    // A gauge's end: a point or a node set, one of the two.
+    const auto end = [&](const char* point, const char* set) {
+      ProbeSpec::End e;
+      e.point = r.opt_vec3(t, "probe", point, w);
+      const auto named = r.opt_string(t, "probe", set, w);
+      if (e.point.has_value() == named.has_value())
+        r.fail(named && e.point ? t.get(set) : &t, w + (named && e.point ? set : point),
+               fmt::format("expected either {} = [x, y, z] or {} = \"<node set>\" for {}, got {}",
+                           point, set, what, named ? "both" : "neither"));
+      if (named) {
+        if (std::find(set_names.begin(), set_names.end(), *named) == set_names.end())
+          r.fail(t.get(set), w + set,
+                 fmt::format("expected the name of a [[node_set]], got \"{}\"", *named));
+        e.set = *named;
+      }
+      return e;
+    };
+    if (kind == "displacement") {
+      p.kind = ProbeSpec::Kind::Displacement;
+      const auto at = r.opt_vec3(t, "probe", "at", w);
+      if (at.has_value() == t.contains("set"))
+        r.fail(at ? t.get("set") : &t, w + (at ? "set" : "at"),
+               fmt::format("expected either at = [x, y, z] or set = \"<node set>\" for {}, got {}",
+                           what, at ? "both" : "neither"));
+      if (at) {
+        p.at = *at;
+        p.has_at = true;
+      } else {
+        p.set = known_set(t, w);
+      }
+      p.component = r.get_string(t, "probe", "component", w)[0] - 'x';
+    } else if (kind == "opening" || kind == "strain") {
+      p.kind = kind == "opening" ? ProbeSpec::Kind::Opening : ProbeSpec::Kind::Strain;
+      p.from = end("from", "from_set");
+      p.to = end("to", "to_set");
+      if (kind == "opening")
+        p.component = r.get_string(t, "probe", "component", w)[0] - 'x';
+    } else if (kind == "bar_force") {
       p.kind = ProbeSpec::Kind::BarForce;
       const auto at = r.opt_vec3(t, "probe", "at", w);
       if (!at)

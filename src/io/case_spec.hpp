@@ -62,11 +62,18 @@ struct PrecrackSpec {
 
 struct ProbeSpec {
   std::string name;
-  enum class Kind { BarForce, Reaction, Load } kind = Kind::BarForce;
-  Vec3 at;           // bar_force: the bar whose centre is nearest
-  std::string set;   // reaction: node set
-  int component = 2; // reaction: 0, 1, 2
+  enum class Kind { BarForce, Reaction, Load, Displacement, Opening, Strain } kind = Kind::BarForce;
+  Vec3 at;           // bar_force: the bar whose centre is nearest; displacement: the node
+  bool has_at = false;
+  std::string set;   // reaction: node set; displacement (without at): its nodes' mean
+  int component = 2; // reaction, displacement, opening: 0, 1, 2
   std::string load;  // load: name of the load
+  // opening and strain: the two ends, each the node nearest a point or a node set's mean.
+  struct End {
+    std::optional<Vec3> point;
+    std::string set;
+  };
+  End from, to;
 };
 
 struct OutputSpec {

@@ -409,7 +409,8 @@ def probes_png(d, case):
     if not names:
         return
     kinds = {p["name"]: p.get("kind", "") for p in case.get("probe", [])}
-    unit = {"reaction": "N", "load": "N", "bar_force": "N"}
+    unit = {"reaction": "N", "load": "N", "bar_force": "N", "displacement": "m", "opening": "m",
+            "strain": "-"}
     t = [float(r["time"]) * 1e3 for r in rows]
     fig, axes = plt.subplots(len(names), 1, figsize=(7, 1.2 + 1.8 * len(names)), sharex=True,
                              squeeze=False)
