@@ -121,6 +121,21 @@ def main():
     disp = vtk_to_numpy(g.GetPointData().GetArray("displacement"))
     if disp.shape != (res["nodes"], 3) or not math.isfinite(float(abs(disp).max())):
         fail("displacement array")
+    # Each bar's strain is (l - l0) / l0 from its nodes' positions and displacements (both
+    # written in single precision: the relative error of the recomputed strain is about 1e-7 of
+    # the displacements' scale over the bar's length).
+    pts = vtk_to_numpy(g.GetPoints().GetData()).astype("float64")
+    conn = vtk_to_numpy(g.GetCells().GetConnectivityArray()).reshape(-1, 2)
+    d0 = pts[conn[:, 1]] - pts[conn[:, 0]]
+    du = disp[conn[:, 1]].astype("float64") - disp[conn[:, 0]].astype("float64")
+    l0 = (d0 ** 2).sum(axis=1) ** 0.5
+    strain = (((d0 + du) ** 2).sum(axis=1) ** 0.5 - l0) / l0
+    written = vtk_to_numpy(g.GetCellData().GetArray("strain")).astype("float64")
+    scale = float(abs(disp).max()) / float(l0.min())
+    worst = float(abs(written - strain).max())
+    if worst > 1e-5 * scale + 1e-12:
+        fail(f"strain array: differs from (l - l0) / l0 of the nodes by up to {worst:.3e} "
+             f"(displacements / bar length up to {scale:.3e})")
     print(f"check_outputs: {d}: {len(files)} snapshots read by VTK, "
           f"{len(rows)} energy rows, {len(broken)} bars broken in the run, balance "
           f"{summary['max_balance_error']:.2e}: all consistent")

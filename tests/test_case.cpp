@@ -120,9 +120,9 @@ TEST(CaseFile, FatigueLawAndItsTable) {
 
 TEST(CaseFile, KeysThatDoNotApplyAreRefused) {
   std::string e = error_of(edit("{ type = \"ramp\", duration = 1e-4 }",
-                                "{ type = \"ramp\", duration = 1e-4, t_start = 1e-5 }"));
-  EXPECT_NE(e.find("case.toml:21: velocity[0].function[0].t_start: does not apply to a \"ramp\" "
-                   "term (its keys: type, value, duration)"),
+                                "{ type = \"ramp\", duration = 1e-4, n_cycles = 2 }"));
+  EXPECT_NE(e.find("case.toml:21: velocity[0].function[0].n_cycles: does not apply to a \"ramp\" "
+                   "term (its keys: type, value, duration, t_start, t_end)"),
             std::string::npos)
       << e;
   e = error_of(edit("E = 30e9", "E = { type = \"weibull\", mean = 30e9, cv = 0.1, axis = \"x\" }"));
@@ -223,11 +223,33 @@ TEST(CaseFile, UnknownNodeSetName) {
 }
 
 TEST(CaseFile, BadTimeFunctionTerm) {
-  const std::string e =
+  std::string e =
       error_of(edit("{ type = \"ramp\", duration = 1e-4 }", "{ type = \"ramp\" }"));
   EXPECT_NE(e.find("velocity[0].function[0].duration: required for a \"ramp\" term"),
             std::string::npos)
+      << e;  // A table's points must be pairs with times that increase; keys of other terms are refused.
+  const std::string ramp = "{ type = \"ramp\", duration = 1e-4 }";
+  e = error_of(edit(ramp, "{ type = \"table\", points = [[0, 0], [1e-4, 1], [1e-4, 2]] }"));
+  EXPECT_NE(e.find("velocity[0].function[0].points[2]: expected times that increase, got s = "
+                   "0.0001 after s = 0.0001"),
+            std::string::npos)
       << e;
+  e = error_of(edit(ramp, "{ type = \"table\", points = [[0, 0], [1e-4]] }"));
+  EXPECT_NE(e.find("velocity[0].function[0].points[1]: expected a point [s, value] of two "
+                   "numbers"),
+            std::string::npos)
+      << e;
+  e = error_of(edit(ramp, "{ type = \"table\", points = [[0, 0]], duration = 1e-4 }"));
+  EXPECT_NE(e.find("velocity[0].function[0].duration: does not apply to a \"table\" term"),
+            std::string::npos)
+      << e;
+  e = error_of(edit(ramp, "{ type = \"ramp\", duration = 1e-4, t_start = 2e-4, t_end = 1e-4 }"));
+  EXPECT_NE(e.find("velocity[0].function[0].t_end: expected a time after t_start = 0.0002, got "
+                   "0.0001"),
+            std::string::npos)
+      << e;
+  EXPECT_EQ(error_of(edit(ramp, "{ type = \"table\", points = [[0, 0], [1e-4, 1]], t_end = 1 }")),
+            "");
 }
 
 TEST(CaseFile, MissingFileIsNamed) {

@@ -78,7 +78,7 @@ if [ $rc -eq 2 ] && grep -q "not empty" "$T/stderr" && [ "$(ls "$T/full")" = "ma
 # A real run, checked by an independent reader, then re-plotted.
 if "$LDEM" run "$GOOD" --out "$T/run" --threads 2 >"$T/stdout" 2>"$T/stderr"; then ok; else bad "tutorial run: $(cat "$T/stderr")"; fi
 /usr/bin/python3 "$SRC/tests/check_outputs.py" "$T/run" && ok || bad "outputs of the tutorial run"
-[ -s "$T/run/crack.png" ] && [ -s "$T/run/energy.png" ] && [ -s "$T/run/probes.png" ] && ok || bad "PNG plots missing"
+[ -s "$T/run/crack.png" ] && [ -s "$T/run/energy.png" ] && [ -s "$T/run/probes.png" ] && [ -s "$T/run/response.png" ] && ok || bad "PNG plots missing"
 rm -f "$T/run/crack.png" "$T/run/energy.png"
 "$LDEM" plot "$T/run" && [ -s "$T/run/crack.png" ] && ok || bad "ldem plot"
 "$LDEM" run "$GOOD" --out "$T/run" --force --no-plot >/dev/null 2>&1 && ok || bad "--force into a used folder"
@@ -188,6 +188,9 @@ sed -e 's/^e_p = 1.0e-4 .*/e_p = 1.0e-4\nlaw = "bilinear_fatigue"\n\n[fatigue]\n
   -e 's/^ramp = 2.0e-4/function = [{ type = "growing_sine", amplitude = 1.0, frequency = 1000.0, t_start = 0.0, tau = 1.0 }]/' \
   -e 's/^end = 4.0e-3 .*/end = 0.02/' -e 's/^energy_every = 50/energy_every = 100/' "$GOOD" >"$T/jump.toml"
 "$LDEM" run "$T/jump.toml" --out "$T/jump1" --no-plot >/dev/null 2>"$T/stderr" || bad "jump run: $(cat "$T/stderr")"
+# (a term that ends would not keep its cycles through a jump: refused)
+sed 's/tau = 1.0 }]/tau = 1.0, t_end = 0.01 }]/' "$T/jump.toml" >"$T/jump_end.toml"
+expect_error jump_t_end "fatigue.jump: expected loads whose terms go on to the end (a jump skips their cycles), got t_end = 0.01 s" "$T/jump_end.toml"
 grep -q '"jumped_cycles": [1-9]' "$T/jump1/summary.json" && ok || bad "no cycles jumped: $(grep jumped "$T/jump1/summary.json")"
 kill_after_checkpoint "$T/jump.toml" "$T/jumpk" 20000
 if [ -s "$T/jumpk/checkpoint/state.ckpt" ] && "$LDEM" resume "$T/jumpk" --no-plot >/dev/null 2>"$T/stderr" &&
@@ -315,7 +318,7 @@ rc=$?
 # stops with exit 2 and says which file failed; no file under its final name is cut short:
 # every snapshot has the size of the first, a log under its final name or kept as .part ends
 # with a whole row, and a snapshot that failed leaves no .part behind.
-if [ "$(id -u)" -eq 0 ] && mkdir -p "$T/tmpfs" && mount -t tmpfs -o size=400k tmpfs "$T/tmpfs" 2>/dev/null; then
+if [ "$(id -u)" -eq 0 ] && mkdir -p "$T/tmpfs" && mount -t tmpfs -o size=600k tmpfs "$T/tmpfs" 2>/dev/null; then
   "$LDEM" run "$GOOD" --out "$T/tmpfs/vtu" --no-plot >/dev/null 2>"$T/stderr"
   rc=$?
   whole=1

@@ -42,6 +42,48 @@ TEST(TimeFunction, BadParametersAreRefused) {
   EXPECT_THROW(TimeFunction({ExponentialRise{1.0, -1.0}}), InputError);
   EXPECT_THROW(TimeFunction({GrowingSine{1.0, 0.0, 0.0, 1.0, 1.0}}), InputError);
   EXPECT_THROW(TimeFunction({GrowingSine{1.0, 1.0, 0.0, 1.0, -2.0}}), InputError);
+  EXPECT_THROW(TimeFunction({Tabulated{{0.0, 1.0, 1.0}, {0.0, 1.0, 2.0}}}), InputError); // t
+  EXPECT_THROW(TimeFunction({Tabulated{{}, {}}}), InputError);
+  EXPECT_THROW(TimeFunction({Constant{1.0, 2.0, 1.0}}), InputError); // ends before it starts
+  EXPECT_THROW(TimeFunction({LinearRamp{1.0, 1.0, -1.0}}), InputError);
+}
+
+// A load history as a laboratory writes it: load to 1 over 1 ms, hold, unload over 1 ms. The
+// table reproduces its points and is linear between them, held at its ends.
+TEST(TimeFunction, TableReproducesItsPointsAndInterpolates) {
+  const TimeFunction f({Tabulated{{0.0, 1e-3, 2e-3, 3e-3}, {0.0, 1.0, 1.0, 0.0}}});
+  EXPECT_EQ(f(0.0), 0.0);
+  EXPECT_EQ(f(1e-3), 1.0);
+  EXPECT_EQ(f(2e-3), 1.0);
+  EXPECT_EQ(f(3e-3), 0.0);
+  EXPECT_NEAR(f(0.25e-3), 0.25, 1e-15);  // a quarter of the way up
+  EXPECT_NEAR(f(2.75e-3), 0.25, 1e-15);  // three quarters of the way down
+  EXPECT_EQ(f(1.5e-3), 1.0);             // the hold
+  EXPECT_EQ(f(10e-3), 0.0);              // the last value after the last point
+  const TimeFunction late({Tabulated{{1.0, 2.0}, {-3.0, 5.0}}});
+  EXPECT_EQ(late(0.5), -3.0); // the first value before the first point
+  EXPECT_NEAR(late(1.5), 1.0, 1e-15);
+}
+
+// Every term's window: 0 before t_start and from t_end on; inside, its own time s = t - t_start.
+TEST(TimeFunction, TermsActInTheirWindowOnItsOwnClock) {
+  const TimeFunction ramp({LinearRamp{4.0, 2.0, 1.0, 5.0}});
+  EXPECT_EQ(ramp(0.5), 0.0);
+  EXPECT_EQ(ramp(1.0), 0.0);             // s = 0
+  EXPECT_DOUBLE_EQ(ramp(2.0), 2.0);      // s = 1: 4 * 1/2
+  EXPECT_DOUBLE_EQ(ramp(4.9), 4.0);      // capped
+  EXPECT_EQ(ramp(5.0), 0.0);             // ended
+  const TimeFunction step({Constant{2.0, 0.0, 3.0}});
+  EXPECT_EQ(step(2.999), 2.0);
+  EXPECT_EQ(step(3.0), 0.0);
+  const TimeFunction table({Tabulated{{0.0, 1.0}, {0.0, 2.0}, 10.0, kNever}});
+  EXPECT_EQ(table(9.0), 0.0);
+  EXPECT_NEAR(table(10.5), 1.0, 1e-15); // s = 0.5
+  // Loading then unloading by two ramps, the second starting as the first ends: a triangle.
+  const TimeFunction tri({LinearRamp{1.0, 1.0}, LinearRamp{-1.0, 1.0, 1.0}});
+  EXPECT_DOUBLE_EQ(tri(0.5), 0.5);
+  EXPECT_DOUBLE_EQ(tri(1.5), 0.5);
+  EXPECT_EQ(tri(2.5), 0.0);
 }
 
 // Clapeyron: a constant load P suddenly applied to a linear elastic body, with damping that

@@ -80,6 +80,26 @@ toml::table shape_table(const Shape& sh) {
 
 // A traction load's nodes weighted by the area each stands for (docs/model.md, 6); none for a
 // force per node.
+// Of the items [0, count) that `present` keeps, the first one whose position is nearest to
+// `point` (probes: a bar's centre, a node).
+template <class Present, class Position>
+index_t nearest(index_t count, Vec3 point, Present present, Position position) {
+  index_t best = 0;
+  double d_best = INFINITY;
+  for (index_t i = 0; i < count; ++i) {
+    if (!present(i))
+      continue;
+    const Vec3 x = position(i);
+    const double d = (x.x - point.x) * (x.x - point.x) + (x.y - point.y) * (x.y - point.y) +
+                     (x.z - point.z) * (x.z - point.z);
+    if (d < d_best) {
+      d_best = d;
+      best = i;
+    }
+  }
+  return best;
+}
+
 std::vector<double> traction_weights(const CaseSpec& s, const LoadSpec& l, const Lattice& lat) {
   if (!l.traction)
     return {};
@@ -342,19 +362,9 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     const auto gauge_end = [&](const std::optional<Vec3>& point, const std::string& set,
                                std::vector<index_t>& nodes) {
       if (point) {
-        index_t best = 0;
-        double d_best = INFINITY;
-        for (index_t n = 0; n < lat.num_nodes(); ++n) {
-          if (!lat.node_present(n))
-            continue;
-          const Vec3 x = lat.position(n);
-          const double d = (x.x - point->x) * (x.x - point->x) +
-                           (x.y - point->y) * (x.y - point->y) + (x.z - point->z) * (x.z - point->z);
-          if (d < d_best) {
-            d_best = d;
-            best = n;
-          }
-        }
+        const index_t best = nearest(lat.num_nodes(), *point,
+                                     [&](index_t n) { return lat.node_present(n); },
+                                     [&](index_t n) { return lat.position(n); });
         nodes = {best};
       } else {
         nodes = set_named(c.sets, set).nodes;
@@ -394,20 +404,9 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     }
     for (const ProbeSpec& p : s.probes) {
       index_t best = 0;
-      if (p.kind == ProbeSpec::Kind::BarForce) {
-        double d_best = INFINITY;
-        for (index_t b = 0; b < lat.num_bars(); ++b) {
-          if (!lat.bar_present(b))
-            continue;
-          const Vec3 m = lat.bar_centre(b);
-          const double d = (m.x - p.at.x) * (m.x - p.at.x) + (m.y - p.at.y) * (m.y - p.at.y) +
-                           (m.z - p.at.z) * (m.z - p.at.z);
-          if (d < d_best) {
-            d_best = d;
-            best = b;
-          }
-        }
-      }
+      if (p.kind == ProbeSpec::Kind::BarForce)
+        best = nearest(lat.num_bars(), p.at, [&](index_t b) { return lat.bar_present(b); },
+                       [&](index_t b) { return lat.bar_centre(b); });
       c.probe_bars.push_back(best);
     }
     const std::pair<const std::optional<Field>*, const char*> given[] = {
@@ -439,7 +438,13 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       for (const VelocitySpec& v : s.velocities)
         functions.push_back(&v.scale);
       for (const TimeFunction* f : functions)
-        for (const TimeTerm& term : f->terms())
+        for (const TimeTerm& term : f->terms()) {
+          // A jump carries the loads' cycles on unchanged: no term may end.
+          const double t_end = std::visit([](const auto& x) { return x.t_end; }, term);
+          if (t_end < kNever)
+            throw InputError(fmt::format("fatigue.jump: expected loads whose terms go on to the "
+                                         "end (a jump skips their cycles), got t_end = {:g} s",
+                                         t_end));
           if (const auto* g = std::get_if<GrowingSine>(&term)) {
             if (c.cycle && c.cycle->frequency != g->frequency)
               throw InputError(fmt::format(
@@ -449,6 +454,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
             c.cycle = BuiltCase::LoadCycle{
                 g->frequency, c.cycle ? std::max(c.cycle->t_constant, t_constant) : t_constant};
           }
+        }
       if (!c.cycle)
         throw InputError("fatigue.jump: expected a [[load]] or [[velocity]] with a "
                          "growing_sine term (its cycles are what a jump skips), got none");
@@ -674,21 +680,32 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
       std::visit(
           [&terms](const auto& t) {
             using T = std::decay_t<decltype(t)>;
-            if constexpr (std::is_same_v<T, Constant>)
+            if constexpr (std::is_same_v<T, Constant>) {
               terms.push_back(toml::table{{"type", "constant"}, {"value", t.value}});
-            else if constexpr (std::is_same_v<T, LinearRamp>)
+            } else if constexpr (std::is_same_v<T, LinearRamp>) {
               terms.push_back(
                   toml::table{{"type", "ramp"}, {"value", t.value}, {"duration", t.duration}});
-            else if constexpr (std::is_same_v<T, ExponentialRise>)
+            } else if constexpr (std::is_same_v<T, ExponentialRise>) {
               terms.push_back(
                   toml::table{{"type", "exp_rise"}, {"value", t.value}, {"tau", t.tau}});
-            else
+            } else if constexpr (std::is_same_v<T, GrowingSine>) {
               terms.push_back(toml::table{{"type", "growing_sine"},
                                           {"amplitude", t.amplitude},
                                           {"frequency", t.frequency},
-                                          {"t_start", t.t_start},
                                           {"tau", t.tau},
                                           {"n_cycles", t.n_cycles}});
+            } else {
+              toml::array points;
+              for (std::size_t k = 0; k < t.times.size(); ++k)
+                points.push_back(toml::array{t.times[k], t.values[k]});
+              terms.push_back(toml::table{{"type", "table"}, {"points", points}});
+            }
+            // Its window, where it is not the whole run's.
+            toml::table& w = *terms.back().as_table();
+            if (t.t_start > 0.0 || std::is_same_v<T, GrowingSine>)
+              w.insert("t_start", t.t_start);
+            if (t.t_end < kNever)
+              w.insert("t_end", t.t_end);
           },
           term);
     // Inline tables ({ type = ... }), as a case writes them.

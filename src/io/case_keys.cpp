@@ -116,13 +116,15 @@ const std::vector<KeyDecl>& case_keys() {
     {"load", "force", "[3 floats]", "-", "N", -kInf, kInf, false, false, "", "Force on each node of the set, scaled by the time function. Give force or traction."},
     {"load", "traction", "[3 floats]", "-", "Pa", -kInf, kInf, false, false, "", "Force per area on the face that the set covers (a set given by face or face_centres), scaled by the time function: each node takes the area it stands for (a face's corner nodes a quarter of each module face around them, centre nodes a whole module face). Give force or traction."},
 
-    {"function", "type", "string", "required", "", -kInf, kInf, false, false, "\"constant\", \"ramp\", \"exp_rise\", \"growing_sine\"", "One term of the time function of a velocity or load (`function = [{...}, ...]`, summed); without `function` the factor is 1."},
-    {"function", "value", "float", "1", "", -kInf, kInf, false, false, "", "constant: value; ramp: value * min(t / duration, 1); exp_rise: value * (1 - exp(-t / tau))."},
+    {"function", "type", "string", "required", "", -kInf, kInf, false, false, "\"constant\", \"ramp\", \"exp_rise\", \"growing_sine\", \"table\"", "One term of the time function of a velocity or load (`function = [{...}, ...]`, summed); without `function` the factor is 1. Every term is 0 before its t_start and from its t_end on; s = t - t_start is its own time."},
+    {"function", "value", "float", "1", "", -kInf, kInf, false, false, "", "constant: value; ramp: value * min(s / duration, 1); exp_rise: value * (1 - exp(-s / tau))."},
     {"function", "duration", "float", "-", "s", 0, kInf, true, false, "", "ramp: time to reach the value."},
     {"function", "tau", "float", "-", "s", 0, kInf, true, false, "", "exp_rise, growing_sine: time constant."},
     {"function", "amplitude", "float", "-", "", -kInf, kInf, false, false, "", "growing_sine: final amplitude."},
     {"function", "frequency", "float", "-", "Hz", 0, kInf, true, false, "", "growing_sine: frequency."},
-    {"function", "t_start", "float", "0", "s", 0, kInf, false, false, "", "growing_sine: start time."},
+    {"function", "t_start", "float", "0", "s", 0, kInf, false, false, "", "Every term: the time it starts; its own time s = t - t_start runs from then (a ramp rises from then, a sine starts, a table's times count from then)."},
+    {"function", "t_end", "float", "-", "s", 0, kInf, true, false, "", "Every term: from this time on the term is 0 (default: never). Must be after t_start."},
+    {"function", "points", "[[2 floats], ...]", "-", "", -kInf, kInf, false, false, "", "table: the points [s, value], s increasing: the value is linear between them, the first value before the first point and the last after the last. For a load history: points = [[0, 0], [1e-3, 1], [2e-3, 1], [3e-3, 0]] loads, holds and unloads."},
     {"function", "n_cycles", "float", "0", "", 0, kInf, false, false, "", "growing_sine: cycles after which the amplitude stays constant."},
 
     {"precrack", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name, for messages."},
@@ -142,7 +144,7 @@ const std::vector<KeyDecl>& case_keys() {
     {"output", "energy_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between rows of energy.csv and probes.csv; 0: about 500 rows."},
     {"output", "vtu_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between lattice snapshots; 0: about 20."},
     {"output", "vtu", "bool", "true", "", -kInf, kInf, false, false, "", "Write lattice.pvd and its .vtu files."},
-    {"output", "plots", "bool", "true", "", -kInf, kInf, false, false, "", "Make crack.png, energy.png and probes.png at the end (also: --no-plot)."},
+    {"output", "plots", "bool", "true", "", -kInf, kInf, false, false, "", "Make crack.png, energy.png, probes.png and response.png at the end (also: --no-plot)."},
 
     {"output", "checkpoint_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between checkpoints in checkpoint/ (0: by wall time only). A stop by Ctrl-C or SIGTERM always leaves one; `ldem resume DIR` continues."},
     {"output", "checkpoint_seconds", "float", "600", "s", 0, kInf, false, false, "", "Wall-clock seconds between checkpoints (0: never by time)."},
@@ -184,7 +186,7 @@ std::string case_format_markdown() {
       "# Case file format\n\n"
       "A case is a TOML file. This page is generated from the declarations in\n"
       "`src/io/case_keys.cpp` (`ldem case-format` prints it). Unknown keys are errors, and so\n"
-      "are keys that do not apply to their table's kind (the meanings below say which: `t_start`\n"
+      "are keys that do not apply to their table's kind (the meanings below say which: `points`\n"
       "on a `ramp` term, `courant` without `rule = \"paper\"`, `at` on a reaction probe).\n"
       "Tables: `[case]`, `[lattice]`, `[material]`, `[fatigue]` (with `law =\n"
       "\"bilinear_fatigue\"` only), `[time]`, `[output]`, `[analysis]`; arrays\n"

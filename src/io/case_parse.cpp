@@ -285,13 +285,16 @@ public:
       const std::string type = get_string(*term, "function", "type", w);
       const std::string what = fmt::format("a \"{}\" term", type);
       if (type == "constant")
-        only(*term, w, what, {"type", "value"});
+        only(*term, w, what, {"type", "value", "t_start", "t_end"});
       else if (type == "ramp")
-        only(*term, w, what, {"type", "value", "duration"});
+        only(*term, w, what, {"type", "value", "duration", "t_start", "t_end"});
       else if (type == "exp_rise")
-        only(*term, w, what, {"type", "value", "tau"});
+        only(*term, w, what, {"type", "value", "tau", "t_start", "t_end"});
+      else if (type == "table")
+        only(*term, w, what, {"type", "points", "t_start", "t_end"});
       else
-        only(*term, w, what, {"type", "amplitude", "frequency", "t_start", "tau", "n_cycles"});
+        only(*term, w, what,
+             {"type", "amplitude", "frequency", "t_start", "tau", "n_cycles", "t_end"});
       auto need = [&](const char* key) {
         const auto v = opt_float(*term, "function", key, w);
         if (!v)
@@ -299,17 +302,55 @@ public:
         return *v;
       };
       const double value = get_float(*term, "function", "value", w);
+      const double t_start = get_float(*term, "function", "t_start", w);
+      const double t_end = opt_float(*term, "function", "t_end", w).value_or(kNever);
+      // A table's points: [[s, value], ...].
+      const auto table = [&] {
+        const toml::node* pn = find(*term, "points");
+        if (!pn)
+          fail(term, w + "points", "required for a \"table\" term");
+        const toml::array* pa = pn->as_array();
+        if (!pa || pa->empty())
+          fail(pn, w + "points",
+               fmt::format("expected points [[s, value], ...], got {}", describe(*pn)));
+        Tabulated f;
+        for (std::size_t k = 0; k < pa->size(); ++k) {
+          const toml::array* pt = (*pa)[k].as_array();
+          if (!pt || pt->size() != 2 || !(*pt)[0].is_number() || !(*pt)[1].is_number())
+            fail(&(*pa)[k], fmt::format("{}points[{}]", w, k),
+                 fmt::format("expected a point [s, value] of two numbers, got {}",
+                             describe((*pa)[k])));
+          const auto num = [](const toml::node& e) {
+            return e.is_integer() ? static_cast<double>(*e.value<std::int64_t>())
+                                  : *e.value<double>();
+          };
+          f.times.push_back(num((*pt)[0]));
+          f.values.push_back(num((*pt)[1]));
+          if (k > 0 && !(f.times[k] > f.times[k - 1]))
+            fail(&(*pa)[k], fmt::format("{}points[{}]", w, k),
+                 fmt::format("expected times that increase, got s = {:g} after s = {:g}",
+                             f.times[k], f.times[k - 1]));
+        }
+        f.t_start = t_start;
+        f.t_end = t_end;
+        return f;
+      };
       try {
         if (type == "constant")
-          terms.emplace_back(Constant{value});
+          terms.emplace_back(Constant{value, t_start, t_end});
         else if (type == "ramp")
-          terms.emplace_back(LinearRamp{value, need("duration")});
+          terms.emplace_back(LinearRamp{value, need("duration"), t_start, t_end});
         else if (type == "exp_rise")
-          terms.emplace_back(ExponentialRise{value, need("tau")});
+          terms.emplace_back(ExponentialRise{value, need("tau"), t_start, t_end});
+        else if (type == "table")
+          terms.emplace_back(table());
         else
-          terms.emplace_back(GrowingSine{need("amplitude"), need("frequency"),
-                                         get_float(*term, "function", "t_start", w), need("tau"),
-                                         get_float(*term, "function", "n_cycles", w)});
+          terms.emplace_back(GrowingSine{need("amplitude"), need("frequency"), t_start,
+                                         need("tau"),
+                                         get_float(*term, "function", "n_cycles", w), t_end});
+        if (!(t_end > t_start))
+          fail(find(*term, "t_end"), w + "t_end",
+               fmt::format("expected a time after t_start = {:g}, got {:g}", t_start, t_end));
       } catch (const InputError& e) {
         fail(term, w, e.what());
       }

@@ -215,6 +215,7 @@ VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids) {
   tag(VtuLayout::Damage, "Float32", "damage", 1, fb);
   tag(VtuLayout::State, "UInt8", "state", 1, nb);
   tag(VtuLayout::Force, "Float32", "axial_force", 1, fb);
+  tag(VtuLayout::Strain, "Float32", "strain", 1, fb);
   if (ids)
     tag(VtuLayout::BarId, "Int32", "bar", 1, fb);
   const std::span<const StateArray> states = sim.bar_state_arrays();
@@ -351,9 +352,11 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) : ranks_(sim.lattice()
   vel_.resize(3 * std::size_t{nn});
   damage_f_.resize(nb);
   force_f_.resize(nb);
+  strain_f_.resize(nb);
   state_.resize(nb);
   damage_.resize(nb);
   force_.resize(nb);
+  strain_.resize(nb);
 }
 
 void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
@@ -378,13 +381,15 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
       }
     }
   }
-  sim.bar_snapshot(state_, damage_, force_);
+  sim.bar_snapshot(state_, damage_, force_, &strain_);
   const auto nb = static_cast<std::ptrdiff_t>(nb_);
 #pragma omp parallel for schedule(static)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
     damage_f_[static_cast<std::size_t>(b)] =
         static_cast<float>(damage_[static_cast<std::size_t>(b)]);
     force_f_[static_cast<std::size_t>(b)] = static_cast<float>(force_[static_cast<std::size_t>(b)]);
+    strain_f_[static_cast<std::size_t>(b)] =
+        static_cast<float>(strain_[static_cast<std::size_t>(b)]);
   }
   // A shaped body's file holds its present nodes and bars only (the buffers keep the body's
   // size, so the next snapshot fills them whole again).
@@ -395,7 +400,7 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
       keep_present(*v, ranks_.node, 3);
       v->resize(3 * std::size_t{nn_});
     }
-    for (std::vector<float>* v : {&damage_f_, &force_f_}) {
+    for (std::vector<float>* v : {&damage_f_, &force_f_, &strain_f_}) {
       keep_present(*v, ranks_.bar, 1);
       v->resize(nb_);
     }
@@ -415,6 +420,7 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   block(damage_f_.data(), std::size_t{wb} * sizeof(float));
   block(state_.data(), wb);
   block(force_f_.data(), std::size_t{wb} * sizeof(float));
+  block(strain_f_.data(), std::size_t{wb} * sizeof(float));
   if (shaped)
     block(bar_id_.data(), bar_id_.size() * sizeof(std::int32_t));
   for (std::size_t a : law_states_) {

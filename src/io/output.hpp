@@ -77,6 +77,7 @@ struct VtuLayout {
     Damage,       // Float32 per bar
     State,        // UInt8 per bar
     Force,        // Float32 per bar
+    Strain,       // Float32 per bar
     E,            // Float32 per bar, the four fields only where they vary
     Gf,
     EP,
@@ -141,9 +142,9 @@ private:
   std::vector<std::int32_t> node_id_, bar_id_;
   std::string header_;
   std::vector<char> static_block_;
-  std::vector<float> disp_, vel_, damage_f_, force_f_;
+  std::vector<float> disp_, vel_, damage_f_, force_f_, strain_f_;
   std::vector<std::uint8_t> state_;
-  std::vector<double> damage_, force_;
+  std::vector<double> damage_, force_, strain_;
   std::vector<std::size_t> law_states_; // the law's state arrays written (VtuLayout::states)
   std::vector<double> law_state_;
   std::vector<float> law_state_f_;

@@ -84,7 +84,7 @@ void SubdomainVtuWriter::write(const SubdomainRun& run, const std::string& path)
   }
   // Bars: the window's states, damage and forces (owned bars taken), connectivity in the
   // body's node numbers, and the material fields where they vary.
-  sim.bar_snapshot(state_, damage_, force_);
+  sim.bar_snapshot(state_, damage_, force_, &strain_);
   const bool fields = l.present[VtuLayout::E];
   for (const Span& s : bars_) {
     const index_t lb = s.local_first, gb = s.global_first;
@@ -97,6 +97,9 @@ void SubdomainVtuWriter::write(const SubdomainRun& run, const std::string& path)
     fill<float>(buf_, picks_, 1,
                 [&](index_t q, float* o) { *o = static_cast<float>(force_[lb + q]); });
     put(VtuLayout::Force, s, 4);
+    fill<float>(buf_, picks_, 1,
+                [&](index_t q, float* o) { *o = static_cast<float>(strain_[lb + q]); });
+    put(VtuLayout::Strain, s, 4);
     for (std::size_t q = 0; q < l.states.size(); ++q) {
       law_state_.clear();
       sim.append_bar_states(l.states[q], lb, s.count, law_state_);

@@ -27,7 +27,7 @@ private:
   std::vector<char> buf_;          // one span's values, reused
   std::vector<index_t> picks_;     // the span's items the file holds
   std::vector<std::uint8_t> state_;
-  std::vector<double> damage_, force_;
+  std::vector<double> damage_, force_, strain_;
   std::vector<Vec3> u_, v_;       // one span's node states, reused
   std::vector<double> law_state_; // one span's values of a law's state array, reused
 };

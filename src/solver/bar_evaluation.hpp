@@ -265,14 +265,17 @@ template <class Law> Simulation::BarEnergies bar_energies(const SimulationCore& 
   return out;
 }
 
-// Per bar: state, damage and axial force.
+// Per bar: state, damage, axial force and (with `strain`) axial strain.
 template <class Law>
 void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
-                  std::vector<double>& damage, std::vector<double>& force) {
+                  std::vector<double>& damage, std::vector<double>& force,
+                  std::vector<double>* strain) {
   const index_t nb = core.lat.num_bars();
   state.resize(nb);
   damage.resize(nb);
   force.resize(nb);
+  if (strain)
+    strain->resize(nb);
   // Rows of pristine bars of a uniform material: F = k (l - l0) times the area factor, no
   // damage, unless a bar of the row is strained past its elastic limit now (the next bar pass
   // would mark the row damaged): such a row goes through the law with the others.
@@ -297,6 +300,7 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
     const double peak = Law::row(core.table, row.family, b0).family.elastic_limit() * fi.l0;
     // (The forces in a loop of doubles alone, which GCC vectorises; the bytes apart.)
     double* __restrict f = force.data() + b0;
+    double* __restrict e = strain ? strain->data() + b0 : nullptr;
     const std::uint8_t* __restrict code =
         core.layout.coded()
             ? core.layout.bar_code.data() + static_cast<std::size_t>(core.layout.state_origin[r])
@@ -307,6 +311,10 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
                   p1 = core.layout.compact() ? row.p1 : n;
     std::fill(f, f + p0, 0.0);
     std::fill(f + p1, f + n, 0.0);
+    if (e) {
+      std::fill(e, e + p0, 0.0);
+      std::fill(e + p1, e + n, 0.0);
+    }
 #pragma omp simd reduction(+ : past)
     for (index_t i = p0; i < p1; ++i) {
       const double dl = stretch(fi.d0.x + (ubx[i] - uax[i]), fi.d0.y + (uby[i] - uay[i]),
@@ -316,6 +324,9 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
       const double k = code ? inner * (code[i] * 0.25) : i == 0 || i + 1 == n ? end : inner;
       f[i] = k * dl;
       past += k != 0.0 && dl > peak ? 1 : 0;
+      // (An absent bar's strain is 0, as its force: its area factor is 0.)
+      if (e)
+        e[i] = k != 0.0 ? dl * inv_l0 : 0.0;
     }
     core.snapshot_by_law[r] = past > 0;
     std::fill_n(damage.begin() + b0, n, 0.0);
@@ -331,11 +342,14 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
         const double l0 = core.lat.family(core.layout.bar_rows[r].family).l0;
         double* f = force.data() + b0;
         double* d = damage.data() + b0;
+        double* e = strain ? strain->data() + b0 : nullptr;
         std::uint8_t* st = state.data() + b0;
-        const auto values = [f, d, l0](index_t i, Stretch g, const Law& law, typename Law::State s,
-                                       double k, double EA) {
+        const auto values = [f, d, e, l0](index_t i, Stretch g, const Law& law,
+                                          typename Law::State s, double k, double EA) {
           d[i] = law.damage(EA, l0, s);
           f[i] = law.force_over_length(k, g, s) * g.l;
+          if (e)
+            e[i] = EA != 0.0 ? g.e : 0.0; // (an absent bar: EA = 0)
         };
         const index_t n = per_bar ? visit_law_row<Law, true>(core, r, values)
                                   : visit_law_row<Law, false>(core, r, values);

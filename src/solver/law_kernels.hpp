@@ -25,7 +25,7 @@ struct LawKernels {
   Simulation::BarEnergies (*report_bar_energies)(SimulationCore&);
   Simulation::BarEnergies (*bar_energies)(const SimulationCore&);
   void (*bar_snapshot)(const SimulationCore&, std::vector<std::uint8_t>&, std::vector<double>&,
-                       std::vector<double>&);
+                       std::vector<double>&, std::vector<double>*);
   void (*internal_forces)(const SimulationCore&, std::vector<double>&, std::vector<double>&,
                           std::vector<double>&);
   Vec3 (*node_force)(const SimulationCore&, index_t);

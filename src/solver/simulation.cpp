@@ -569,8 +569,8 @@ double Simulation::stored_energy() const {
 }
 
 void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<double>& damage,
-                              std::vector<double>& force) const {
-  law_->bar_snapshot(*core_, state, damage, force);
+                              std::vector<double>& force, std::vector<double>* strain) const {
+  law_->bar_snapshot(*core_, state, damage, force, strain);
 }
 
 index_t Simulation::first_bad_node() const {

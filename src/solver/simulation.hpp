@@ -250,9 +250,10 @@ public:
   // Elastic and dissipated energy of all bars, every bar through the bar law, summed row by
   // row (deterministic): the reference the report steps' energies are tested against.
   BarEnergies bar_energies() const;
-  // Per bar: state (0 intact, 1 softening, 2 broken), damage (dissipated / Gf A^f), axial force.
+  // Per bar: state (0 intact, 1 softening, 2 broken), damage (dissipated / Gf A^f), axial force
+  // and, if asked for, axial strain (l - l0) / l0 (0 for an absent bar).
   void bar_snapshot(std::vector<std::uint8_t>& state, std::vector<double>& damage,
-                    std::vector<double>& force) const;
+                    std::vector<double>& force, std::vector<double>* strain = nullptr) const;
   // Force of its bars on one node at the current state (from the bar law).
   Vec3 node_force(index_t node) const;
   // The nodal load at the current step's start on a node (zero without loads).

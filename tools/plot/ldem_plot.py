@@ -421,6 +421,20 @@ def probes_png(d, case):
     axes[-1, 0].set_xlabel("time [ms]")
     axes[0, 0].set_title(case.get("case", {}).get("title", ""), fontsize=9)
     save(fig, os.path.join(d, "probes.png"))
+    # A laboratory's curve: the first force probe against the first gauge (load-CMOD,
+    # load-deflection, stress-strain), in response.png.
+    forces = [n for n in names if kinds.get(n) in ("reaction", "load")]
+    gauges = [n for n in names if kinds.get(n) in ("opening", "displacement", "strain")]
+    if forces and gauges:
+        f, g = forces[0], gauges[0]
+        scale, gunit = (1e3, "mm") if kinds[g] != "strain" else (1e6, "1e-6")
+        fig, ax = plt.subplots(figsize=(6, 4.2))
+        ax.plot([float(r[g]) * scale for r in rows], [float(r[f]) for r in rows], "k-", lw=0.9)
+        ax.set_xlabel(f"{g} [{gunit}]")
+        ax.set_ylabel(f"{f} [N]")
+        ax.grid(alpha=0.3)
+        ax.set_title(case.get("case", {}).get("title", ""), fontsize=9)
+        save(fig, os.path.join(d, "response.png"))
 
 
 def fields_png(d, case):
