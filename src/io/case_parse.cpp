@@ -1075,7 +1075,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
       r.only(t, w, what, {"name", "kind", "from", "from_set", "to", "to_set"});
     else
       r.only(t, w, what, {"name", "kind", "load"});
-    // A gauge's end: a point or a node set, one of the two.
+    // A gauge's end (a displacement's node): a point or a node set, one of the two.
     const auto end = [&](const char* point, const char* set) {
       ProbeSpec::End e;
       e.point = r.opt_vec3(t, "probe", point, w);
@@ -1094,17 +1094,10 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     };
     if (kind == "displacement") {
       p.kind = ProbeSpec::Kind::Displacement;
-      const auto at = r.opt_vec3(t, "probe", "at", w);
-      if (at.has_value() == t.contains("set"))
-        r.fail(at ? t.get("set") : &t, w + (at ? "set" : "at"),
-               fmt::format("expected either at = [x, y, z] or set = \"<node set>\" for {}, got {}",
-                           what, at ? "both" : "neither"));
-      if (at) {
-        p.at = *at;
-        p.has_at = true;
-      } else {
-        p.set = known_set(t, w);
-      }
+      const ProbeSpec::End e = end("at", "set");
+      p.has_at = e.point.has_value();
+      p.at = e.point.value_or(Vec3{});
+      p.set = e.set;
       p.component = r.get_string(t, "probe", "component", w)[0] - 'x';
     } else if (kind == "opening" || kind == "strain") {
       p.kind = kind == "opening" ? ProbeSpec::Kind::Opening : ProbeSpec::Kind::Strain;
