@@ -310,14 +310,18 @@ double load_remote_stress(const RunGeometry& rg, const toml::table& load) {
   const std::string& file = rg.case_file;
   const std::string name = load["name"].value_or(std::string());
   const std::string set = load["set"].value_or(std::string());
-  const bool traction = load.contains("traction");
+  // A total is spread over its area (a traction of total / area).
+  const bool total = load.contains("total");
+  const bool traction = total || load.contains("traction");
+  const char* key = total ? "total" : traction ? "traction" : "force";
   std::array<double, 3> force{};
   for (std::size_t k = 0; k < 3; ++k)
-    force[k] = resolved_number(load[traction ? "traction" : "force"][k], file,
-                               traction ? "load.traction" : "load.force");
+    force[k] = resolved_number(load[key][k], file, std::string("load.") + key);
   const double magnitude =
       std::sqrt(force[0] * force[0] + force[1] * force[1] + force[2] * force[2]);
   double sigma_unit = magnitude;
+  if (total)
+    sigma_unit = magnitude / resolved_number(load["area"], file, "load.area");
   if (!traction) {
     double nodes = 0.0;
     if (const auto* sets = c["node_set"].as_array())

@@ -100,8 +100,9 @@ index_t nearest(index_t count, Vec3 point, Present present, Position position) {
   return best;
 }
 
-std::vector<double> traction_weights(const CaseSpec& s, const LoadSpec& l, const Lattice& lat) {
-  if (!l.traction)
+std::vector<double> traction_weights(const CaseSpec& s, const LoadSpec& l, const Lattice& lat,
+                                     const NodeSet& set) {
+  if (l.kind != LoadSpec::Kind::Traction && l.kind != LoadSpec::Kind::Total)
     return {};
   const auto spec = std::find_if(s.node_sets.begin(), s.node_sets.end(),
                                  [&](const NodeSetSpec& n) { return n.name == l.set; });
@@ -110,10 +111,26 @@ std::vector<double> traction_weights(const CaseSpec& s, const LoadSpec& l, const
   if (spec != s.node_sets.end() && spec->kind == NodeSetSpec::Kind::FaceCentres)
     return std::vector<double>(select_face_module_centres(lat, spec->face).size(),
                                lat.L() * lat.L());
-  throw InputError(fmt::format("load \"{}\" has a traction: expected a node set given by face "
-                               "or face_centres, whose nodes' areas are known; got \"{}\", {}",
-                               l.name, l.set,
-                               spec == s.node_sets.end() ? "not a node set" : how(*spec)));
+  std::vector<double> area = surface_tributary_areas(lat, set.nodes);
+  if (std::all_of(area.begin(), area.end(), [](double a) { return a == 0.0; }))
+    throw InputError(fmt::format(
+        "load \"{}\" has a {}: expected a node set that covers some of the body's surface (the "
+        "four corners of a module face on it), got \"{}\", {} that covers none; give force (N "
+        "on each node) instead",
+        l.name, l.kind == LoadSpec::Kind::Traction ? "traction" : "total", l.set,
+        spec == s.node_sets.end() ? "not a node set" : how(*spec)));
+  return area;
+}
+
+// A load's force per unit weight: its force, traction or acceleration as given; a total spread
+// over the area.
+Vec3 force_per_weight(const LoadSpec& l, const std::vector<double>& weight) {
+  if (l.kind != LoadSpec::Kind::Total)
+    return l.force;
+  double area = 0.0;
+  for (double a : weight)
+    area += a;
+  return {l.force.x / area, l.force.y / area, l.force.z / area};
 }
 
 } // namespace
@@ -125,8 +142,8 @@ double load_total_force(const BuiltCase& c, std::size_t i, double t) {
   double weight = 0.0;
   for (std::size_t q = 0; q < whole.set.nodes.size(); ++q)
     weight += whole.weight_of(q);
-  return l.scale(t) *
-         std::sqrt(l.force.x * l.force.x + l.force.y * l.force.y + l.force.z * l.force.z) * weight;
+  const Vec3 f = whole.force; // per unit weight (a total's: divided by the area)
+  return l.scale(t) * std::sqrt(f.x * f.x + f.y * f.y + f.z * f.z) * weight;
 }
 
 namespace {
@@ -352,9 +369,13 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       cond.velocities.push_back({set_named(c.sets, v.set), v.dofs, v.value, v.scale});
     for (std::size_t i = 0; i < s.loads.size(); ++i) {
       const LoadSpec& l = s.loads[i];
-      cond.loads.push_back({set_named(c.sets, l.set), l.force, l.scale,
-                            for_entry(fmt::format("load[{}].traction", i),
-                                      [&] { return traction_weights(s, l, lat); })});
+      const NodeSet& set = set_named(c.sets, l.set);
+      std::vector<double> weight =
+          for_entry(fmt::format("load[{}].{}", i,
+                                l.kind == LoadSpec::Kind::Total ? "total" : "traction"),
+                    [&] { return traction_weights(s, l, lat, set); });
+      const Vec3 force = force_per_weight(l, weight);
+      cond.loads.push_back({set, force, l.scale, std::move(weight)});
     }
     check_conditions_agree(s, c.sets, lat);
     // A gauge's end: the present node nearest a point, or a node set's nodes; and its mean
@@ -458,6 +479,22 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       if (!c.cycle)
         throw InputError("fatigue.jump: expected a [[load]] or [[velocity]] with a "
                          "growing_sine term (its cycles are what a jump skips), got none");
+    }
+    // A body force: each node of its set weighed by its lumped mass, the simulation's own
+    // (lumped_masses, from the same densities).
+    if (std::any_of(s.loads.begin(), s.loads.end(),
+                    [](const LoadSpec& l) { return l.kind == LoadSpec::Kind::Acceleration; })) {
+      const std::vector<index_t> no_bars;
+      const std::vector<double> rho_module =
+          with_simulation ? fields.rho : case_fields(s, lat, &no_bars, nullptr).rho;
+      const std::vector<double> mass = lumped_masses(lat, s.material.rho, rho_module);
+      for (std::size_t i = 0; i < s.loads.size(); ++i)
+        if (s.loads[i].kind == LoadSpec::Kind::Acceleration) {
+          std::vector<double>& weight = cond.loads[i].weight;
+          weight.clear();
+          for (const index_t n : cond.loads[i].set.nodes)
+            weight.push_back(mass[n]);
+        }
     }
     c.lattice = lat;
     c.conditions = cond;
@@ -723,17 +760,20 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
                               {"function", function(v.scale)}});
   for (std::size_t i = 0; i < s.loads.size(); ++i) {
     const LoadSpec& l = s.loads[i];
+    static const char* const kinds[] = {"force", "traction", "total", "acceleration"};
     toml::table t{{"name", l.name},
                   {"set", l.set},
-                  {l.traction ? "traction" : "force", vec(l.force)},
+                  {kinds[static_cast<int>(l.kind)], vec(l.force)},
                   {"function", function(l.scale)}};
-    if (l.traction) {
-      // The area the traction acts on, its nodes' areas added.
-      double area = 0.0;
-      for (double a : c.conditions.loads[i].weight)
-        area += a;
-      t.insert("area", area);
-    }
+    // The area a traction or total acts on, or the mass a body force acts on: its nodes'
+    // weights added.
+    double weight = 0.0;
+    for (double a : c.conditions.loads[i].weight)
+      weight += a;
+    if (l.kind == LoadSpec::Kind::Traction || l.kind == LoadSpec::Kind::Total)
+      t.insert("area", weight);
+    if (l.kind == LoadSpec::Kind::Acceleration)
+      t.insert("mass", weight);
     loads.push_back(std::move(t));
   }
   for (std::size_t i = 0; i < s.precracks.size(); ++i) {

@@ -83,7 +83,8 @@ void check_end_time(const BuiltCase& c, double dt);
 void remove_fatigue_life(Simulation& sim, const std::vector<index_t>& bars);
 
 // The size of the whole force of load `i` of the case at time t [N]: its force per node times
-// the node count, or its traction times the area of its face.
+// the node count, its traction times the area it acts on (a total: the total), or its
+// acceleration times the mass of its nodes.
 double load_total_force(const BuiltCase& c, std::size_t i, double t);
 
 // An error found after the case was read, as "path:line: message" when the message begins

@@ -933,14 +933,26 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     const toml::table& t = *loads[i];
     const std::string w = fmt::format("load[{}].", i);
     r.check_known(t, "load", w);
-    const auto force = r.opt_vec3(t, "load", "force", w);
-    const auto traction = r.opt_vec3(t, "load", "traction", w);
-    if (force && traction)
-      r.fail(t.get("traction"), w + "traction", "expected force or traction, not both");
-    if (!force && !traction)
-      r.fail(&t, w + "force", "expected force (N on each node) or traction (Pa on a face)");
-    c.loads.push_back({r.get_string(t, "load", "name", w), known_set(t, w),
-                       force ? *force : *traction, r.function(t, w), traction.has_value()});
+    // One of the four ways to give the force, in LoadSpec::Kind's order.
+    static const char* const kinds[] = {"force", "traction", "total", "acceleration"};
+    std::optional<Vec3> given;
+    LoadSpec::Kind kind = LoadSpec::Kind::Force;
+    for (int k = 0; k < 4; ++k)
+      if (const auto v = r.opt_vec3(t, "load", kinds[k], w)) {
+        if (given)
+          r.fail(t.get(kinds[k]), w + kinds[k],
+                 fmt::format("expected one of force, traction, total and acceleration, got {} "
+                             "and {}",
+                             kinds[static_cast<int>(kind)], kinds[k]));
+        given = v;
+        kind = static_cast<LoadSpec::Kind>(k);
+      }
+    if (!given)
+      r.fail(&t, w + "force",
+             "expected force (N on each node), traction (Pa on a surface), total (N over a "
+             "surface) or acceleration (m/s^2 on each node's mass)");
+    c.loads.push_back(
+        {r.get_string(t, "load", "name", w), known_set(t, w), kind, *given, r.function(t, w)});
   }
   const auto cracks = array("precrack");
   for (std::size_t i = 0; i < cracks.size(); ++i) {
@@ -1043,6 +1055,12 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
       r.fail(an.get("fatigue"), "analysis.fatigue",
              "expected a [[load]] whose function has a \"growing_sine\" term (its cycles are "
              "counted), got none");
+    if (chosen && chosen->kind == LoadSpec::Kind::Acceleration)
+      r.fail(an.get(c.analysis.fatigue_load.empty() ? "fatigue" : "fatigue_load"),
+             c.analysis.fatigue_load.empty() ? "analysis.fatigue" : "analysis.fatigue_load",
+             fmt::format("expected a load on a face, whose remote stress is known, got \"{}\", "
+                         "a body force (acceleration)",
+                         chosen->name));
   }
 
   std::vector<std::string> load_names;

@@ -50,9 +50,11 @@ struct VelocitySpec {
 
 struct LoadSpec {
   std::string name, set;
-  Vec3 force; // N on every node; with `traction`, Pa on the face the set covers
+  // What `force` is: N on every node (Force), Pa on the surface the set covers (Traction), N in
+  // all over that surface (Total), or m/s^2 on every node's lumped mass (Acceleration).
+  enum class Kind { Force, Traction, Total, Acceleration } kind = Kind::Force;
+  Vec3 force;
   TimeFunction scale;
-  bool traction = false;
 };
 
 struct PrecrackSpec {

@@ -86,6 +86,57 @@ std::vector<double> face_tributary_areas(const Lattice& lat, Face face) {
   return out;
 }
 
+std::vector<double> surface_tributary_areas(const Lattice& lat,
+                                            const std::vector<index_t>& nodes) {
+  std::vector<double> out(nodes.size(), 0.0);
+  const double quarter = 0.25 * lat.L() * lat.L();
+  const index_t n[3] = {lat.nx(), lat.ny(), lat.nz()};
+  // Where a node is in the set (its place), or -1.
+  const auto place = [&](index_t node) -> std::ptrdiff_t {
+    const auto it = std::lower_bound(nodes.begin(), nodes.end(), node);
+    return it != nodes.end() && *it == node ? it - nodes.begin() : -1;
+  };
+  const auto present = [&](const std::int64_t m[3]) {
+    for (int a = 0; a < 3; ++a)
+      if (m[a] < 0 || m[a] >= n[a])
+        return false;
+    return lat.module_present(static_cast<index_t>(m[0]), static_cast<index_t>(m[1]),
+                              static_cast<index_t>(m[2]));
+  };
+  for (index_t k = 0; k < n[2]; ++k)
+    for (index_t j = 0; j < n[1]; ++j)
+      for (index_t i = 0; i < n[0]; ++i) {
+        if (!lat.module_present(i, j, k))
+          continue;
+        for (int ax = 0; ax < 3; ++ax) {
+          if (n[ax] == 1)
+            continue; // a slice's faces across its thickness
+          const int b0 = ax == 0 ? 1 : 0, b1 = ax == 2 ? 1 : 2;
+          for (int side = 0; side < 2; ++side) {
+            std::int64_t m[3] = {i, j, k};
+            m[ax] += side == 0 ? -1 : 1;
+            if (present(m))
+              continue;
+            // The face's four corners: at index i_ax (+1 on the upper side) along ax.
+            std::ptrdiff_t at[4];
+            bool all = true;
+            for (int c = 0; c < 4 && all; ++c) {
+              index_t x[3] = {i, j, k};
+              x[ax] += static_cast<index_t>(side);
+              x[b0] += static_cast<index_t>(c & 1);
+              x[b1] += static_cast<index_t>(c >> 1);
+              at[c] = place(lat.corner(x[0], x[1], x[2]));
+              all = at[c] >= 0;
+            }
+            if (all)
+              for (const std::ptrdiff_t q : at)
+                out[static_cast<std::size_t>(q)] += quarter;
+          }
+        }
+      }
+  return out;
+}
+
 std::vector<index_t> select_face_module_centres(const Lattice& lat, Face face) {
   const auto n = lat.modules();
   const int ax = axis_of(face);

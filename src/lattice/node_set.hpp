@@ -27,6 +27,15 @@ std::vector<index_t> select_face(const Lattice& lattice, Face face);
 // its border, L^2 inside); they add up to the face's area (in a shaped body, a quarter of each
 // present module's face around it: they add up to the body's area on the face).
 std::vector<double> face_tributary_areas(const Lattice& lattice, Face face);
+// The area of the body's surface each node of `nodes` (sorted) stands for, in the same order:
+// a quarter of every module face of the surface whose four corners are all in the set (a face
+// between a present module and an absent one or the outside of the box; across a direction in
+// which the body is one module thick, a slice of a longer body, the box's faces are not
+// surface, as for select_surface). On a face of the box it gives face_tributary_areas; on the
+// surface nodes of a shape, the staircase area of the body's surface there; centre nodes, and
+// nodes with no such face, stand for none.
+std::vector<double> surface_tributary_areas(const Lattice& lattice,
+                                            const std::vector<index_t>& nodes);
 // Centre nodes of the layer of modules that touches a face ("centre nodes of the
 // modules on the top face"): loads applied there reach the body without the
 // boundary-edge scaling of the face's own bars.

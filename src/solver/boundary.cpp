@@ -111,6 +111,20 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
 }
 
 void apply_loads(SimulationCore& core, double t) {
+  // Loads whose time functions give the values of the last step give the same forces: kept
+  // (a constant body force on every node would otherwise cost a pass over the body each step).
+  std::vector<double>& last = core.bc.load_scales;
+  bool same = last.size() == core.cond.loads.size();
+  for (std::size_t c = 0; c < core.cond.loads.size(); ++c) {
+    const double s = core.cond.loads[c].scale(t);
+    same = same && last[c] == s;
+    if (last.size() < core.cond.loads.size())
+      last.push_back(s);
+    else
+      last[c] = s;
+  }
+  if (same)
+    return;
   for (const auto& slots : core.bc.load_slots)
     for (std::size_t q : slots)
       core.px[q] = core.py[q] = core.pz[q] = 0.0;

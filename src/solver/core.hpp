@@ -47,6 +47,8 @@ struct Boundary {
   std::vector<std::vector<Vec3>> imposed_v_old;
   // Sums over the imposed-velocity DOF of the current step (apply_velocities).
   ExactSum work, work_half, damping, kinetic;
+  // The time functions' values the loads were last applied with (apply_loads), empty before.
+  std::vector<double> load_scales;
 };
 
 struct SimulationCore {

@@ -13,14 +13,6 @@
 
 namespace ldem {
 
-namespace {
-
-// Lumped masses: each module gives rho L^3 / 2 to its centre node and rho L^3 / 16 to each
-// of its 8 corners, so a corner carries (modules sharing it) / 16 rho L^3 (1/2 inside,
-// 1/4 on a face, 1/8 on an edge, 1/16 at a box corner) and the total is rho V exactly.
-// With a density field (one value per module) each module lumps its own mass the same way.
-// A shaped body's absent modules lump nothing: its nodes that no present module has get no
-// mass (the simulation holds them).
 std::vector<double> lumped_masses(const Lattice& lat, double rho,
                                   const std::vector<double>& rho_m) {
   const double V = lat.L() * lat.L() * lat.L();
@@ -47,8 +39,6 @@ std::vector<double> lumped_masses(const Lattice& lat, double rho,
       }
   return m;
 }
-
-} // namespace
 
 double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max,
                          double rho_min, double L, double damping) {

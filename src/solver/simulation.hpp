@@ -67,6 +67,15 @@ struct Conditions {
   int plane_strain_axis = -1; // 0, 1, 2: that displacement is zero at every node
 };
 
+// Lumped masses: each module gives rho L^3 / 2 to its centre node and rho L^3 / 16 to each
+// of its 8 corners, so a corner carries (modules sharing it) / 16 rho L^3 (1/2 inside,
+// 1/4 on a face, 1/8 on an edge, 1/16 at a box corner) and the total is rho V exactly.
+// With a density field (`rho_module`, one value per module; empty: rho everywhere) each module
+// lumps its own mass the same way. A shaped body's absent modules lump nothing: its nodes that
+// no present module has get no mass (the simulation holds them).
+std::vector<double> lumped_masses(const Lattice& lattice, double rho,
+                                  const std::vector<double>& rho_module);
+
 struct LawKernels;
 struct SimulationCore;
 

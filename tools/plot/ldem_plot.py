@@ -531,7 +531,8 @@ def fatigue_pngs(d, case):
             vals = [float(r[col]) for r in probes]
             if pr["kind"] == "load" and pr.get("load") in loads:
                 ld = loads[pr["load"]]
-                force = ld["force"] if "force" in ld else ld["traction"]  # its direction
+                force = next(ld[k] for k in ("force", "traction", "total", "acceleration")
+                             if k in ld)  # its direction
                 axis = max(range(3), key=lambda k: abs(force[k]))
                 section = math.prod(ext[k] for k in range(3) if k != axis)
                 ax.plot(t, [abs(v) / section / 1e6 for v in vals], lw=0.5, color="tab:blue",
