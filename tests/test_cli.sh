@@ -214,8 +214,8 @@ head -c 1000 "$T/good.ckpt" >"$T/bad/checkpoint/state.ckpt"
 expect_resume_error "truncated checkpoint" "a truncated checkpoint"
 printf '\xff' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=5000 conv=notrunc 2>/dev/null
 expect_resume_error "checksum mismatch" "a corrupt checkpoint"
-printf '\x07' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
-expect_resume_error "format version 7" "another format version"
+printf '\x08' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
+expect_resume_error "format version 8" "another format version"
 printf '\x03' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
 expect_resume_error "format version 3, written by an older ldem" "an older format version"
 # A checkpoint must belong to the folder it is in, and the folder must hold what it recorded;
@@ -238,6 +238,45 @@ if "$LDEM" resume "$T/bad" --no-plot >/dev/null 2>"$T/stderr" && same_as_ref "$T
 cp "$T/good.ckpt" "$T/bad/checkpoint/state.ckpt"
 echo "# changed" >>"$T/case.toml"
 expect_resume_error "the case file changed since the checkpoint" "a changed case"
+# A finished run goes on from its end checkpoint: the tutorial plate run to 2 ms and then
+# resumed with --end 4 ms writes, byte for byte, what one run to 4 ms with the same output
+# intervals writes; summary.json says where it was continued. An end before the checkpoint's
+# time is refused and changes nothing.
+sed -e 's/^end = 4.0e-3/end = 2.0e-3/' -e 's/^energy_every = 50/energy_every = 50\nvtu_every = 300/' "$GOOD" >"$T/short.toml"
+sed -e 's/^energy_every = 50/energy_every = 50\nvtu_every = 300/' "$GOOD" >"$T/long.toml"
+"$LDEM" run "$T/long.toml" --out "$T/long" --no-plot >/dev/null 2>&1
+"$LDEM" run "$T/short.toml" --out "$T/cont" --no-plot >/dev/null 2>&1
+[ -s "$T/cont/checkpoint/state.ckpt" ] && ok || bad "no end checkpoint"
+before=$(fingerprint "$T/cont")
+"$LDEM" resume "$T/cont" --end 1.0e-3 >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q -- "--end: expected a time after the checkpoint's, t = 0.00200" "$T/stderr" &&
+  [ "$(fingerprint "$T/cont")" = "$before" ] && ok || bad "resume --end before the checkpoint: rc $rc, $(cat "$T/stderr")"
+"$LDEM" resume "$T/cont" --end 4.0e-3 >/dev/null 2>"$T/stderr" || bad "resume --end: $(cat "$T/stderr")"
+for f in energy.csv events.csv probes.csv lattice.pvd $(ls "$T/long" | grep '\.vtu$'); do
+  cmp -s "$T/long/$f" "$T/cont/$f" || bad "resume --end: $f differs from the run to the later end"
+done
+[ "$(ls "$T/long" | grep -c '\.vtu$')" = "$(ls "$T/cont" | grep -c '\.vtu$')" ] && ok || bad "resume --end: other snapshots"
+grep -q '"continued": \[{"step": [0-9]*, "time": 0.00200[0-9]*, "end_time": 0.004}\]' "$T/cont/summary.json" &&
+  grep -q '"end_time": 0.004' "$T/cont/summary.json" && ok || bad "resume --end: summary.json: $(cat "$T/cont/summary.json")"
+# A run goes on under another case file (--case): the 2 ms run resumed from its end checkpoint
+# under a copy of the 4 ms case writes the 4 ms run's bytes, replaces case.resolved.toml with
+# the new case's (the run's kept as case.resolved.until_step_<n>.toml) and names the case in
+# summary.json; a case with another material is refused and changes nothing.
+"$LDEM" run "$T/short.toml" --out "$T/chg" --no-plot >/dev/null 2>&1
+cp "$T/long.toml" "$T/again.toml"
+sed 's/^Gf = 10.0 /Gf = 12.0 /' "$T/long.toml" >"$T/othermat.toml"
+before=$(fingerprint "$T/chg")
+"$LDEM" resume "$T/chg" --case "$T/othermat.toml" >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && grep -q "othermat.toml: \[material\] differs from the run's" "$T/stderr" &&
+  [ "$(fingerprint "$T/chg")" = "$before" ] && ok || bad "resume --case with another material: rc $rc, $(cat "$T/stderr")"
+"$LDEM" resume "$T/chg" --case "$T/again.toml" >/dev/null 2>"$T/stderr" || bad "resume --case: $(cat "$T/stderr")"
+for f in energy.csv events.csv probes.csv lattice.pvd $(ls "$T/long" | grep '\.vtu$'); do
+  cmp -s "$T/long/$f" "$T/chg/$f" || bad "resume --case: $f differs from the run to the later end"
+done
+cmp -s "$T/long/case.resolved.toml" "$T/chg/case.resolved.toml" && ls "$T/chg"/case.resolved.until_step_*.toml >/dev/null 2>&1 &&
+  grep -q "\"case\": \"$(realpath "$T/again.toml")\"}\]" "$T/chg/summary.json" && ok || bad "resume --case: resolved case or summary.json: $(ls "$T/chg"), $(grep continued "$T/chg/summary.json")"
 "$LDEM" resume "$T/nowhere" >/dev/null 2>"$T/stderr"
 [ $? -eq 2 ] && grep -q "no checkpoint to resume from" "$T/stderr" && ok || bad "resume without a checkpoint"
 

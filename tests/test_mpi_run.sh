@@ -19,7 +19,10 @@ mpi() { local np=$1; shift; "$MPIEXEC" -np "$np" --oversubscribe "$LDEM" "$@"; }
 # graded plate (E and Gf graded along z, the paper's step rule, a pre-crack, probes) and the
 # fatigue plate (Weibull toughness, fixed border, loads, bar-force and load probes).
 sed 's/^end = .*/end = 1.0e-3/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/tutorial.toml"
-sed 's/^end = .*/end = 6.0e-6/' "$SRC/cases/fgm_plate/graded_modulus_toughness.toml" >"$T/graded.toml"
+# (graded.toml: without an end checkpoint, so that the resumes below start from periodic ones,
+# before the end)
+{ sed 's/^end = .*/end = 6.0e-6/' "$SRC/cases/fgm_plate/graded_modulus_toughness.toml"
+  printf '\n[output]\nend_checkpoint = false\n'; } >"$T/graded.toml"
 sed 's/^end = .*/end = 0.004/' "$SRC/cases/subcritical_fatigue_coarse.toml" >"$T/fatigue.toml"
 # And the tutorial plate with the fatigue law and cycle jumping, moved up and down at 1000 Hz
 # for 35 cycles (JUMP_END; the sanitized build 12: a jump, before any bar runs out of life):
@@ -45,6 +48,7 @@ done
 # and 2 x 2 boxes (THICK_GRIDS; the sanitized build runs 2 x 2 alone); a checkpoint of the
 # 2 x 2 run resumed on 3 processes (the grid they choose, 1 x 3).
 sed -e 's/^end = .*/end = 1.2e-3/; s/^modules = .*/modules = [40, 4, 20]/' \
+  -e 's/^\[output\]/[output]\nend_checkpoint = false/' \
   -e 's/^edge2 = .*/edge2 = [0.0, 0.022, 0.0]/' \
   -e 's/^E = .*/E = { type = "weibull", mean = 35.0e9, cv = 0.1, seed = 3 }/' \
   -e 's/^rho = .*/rho = { type = "weibull", mean = 2400.0, cv = 0.05, seed = 4, correlation_length = 0.01 }/' \
@@ -112,6 +116,19 @@ done
 np=${!#}
 mpi "$np" resume "$T/ck-1" --no-plot --threads 1 >/dev/null 2>"$T/err" || bad "resume of one process's checkpoint on $np: $(cat "$T/err")"
 compare "$T/graded-1" "$T/ck-1" "checkpoint of one process resumed on $np"
+
+# A finished run continued (`resume --end`): the graded plate run to 4 us on the last count of
+# processes, then from its end checkpoint to 6 us on one process more, writes the logs and
+# snapshots of one process's run to 6 us with the same output intervals.
+sed -e 's/^end_checkpoint = false/vtu_every = 10/' "$T/graded.toml" >"$T/graded-long.toml"
+sed -e 's/^end = .*/end = 4.0e-6/' "$T/graded-long.toml" >"$T/graded-short.toml"
+"$LDEM" run "$T/graded-long.toml" --out "$T/long-ref" --no-plot --threads 1 >/dev/null 2>&1
+mpi "$np" run "$T/graded-short.toml" --out "$T/cont" --no-plot --threads 1 >/dev/null 2>"$T/err" &&
+  mpi $((np + 1)) resume "$T/cont" --end 6.0e-6 --threads 1 >/dev/null 2>"$T/err" ||
+  bad "run on $np and resume --end on $((np + 1)): $(cat "$T/err")"
+for f in energy.csv events.csv probes.csv lattice.pvd $(ls "$T/long-ref" | grep '\.vtu$'); do
+  cmp -s "$T/long-ref/$f" "$T/cont/$f" || bad "resume --end on $((np + 1)) processes: $f differs"
+done
 
 # Ctrl-C: mpirun passes it on to the processes (as SIGTERM), which agree on a step, write the
 # body's checkpoint and stop; resumed on another number of processes, the folder is the

@@ -113,10 +113,15 @@ struct RunOptions {
 
 int check_command(const std::string& path);
 int run_command(const std::string& path, const RunOptions& options);
-// Continues the interrupted run in `out_dir` from its checkpoint.
-// Under mpirun, grid_y x grid_z processes (0 0: the grid that cuts the least).
+// Continues the run in `out_dir` from its checkpoint: an interrupted one, or with `end` (a time
+// after the checkpoint's) any run, a finished one from its end checkpoint included, to that end.
+// With `new_case`, the run goes on under that case file instead of its own (the same body,
+// material, pre-cracks and probes; other supports, loads, node sets and end time), which
+// replaces case.resolved.toml. Under mpirun, grid_y x grid_z processes (0 0: the grid that
+// cuts the least).
 int resume_command(const std::string& out_dir, int threads, bool plots, int grid_y = 0,
-                   int grid_z = 0);
+                   int grid_z = 0, std::optional<double> end = std::nullopt,
+                   const std::string& new_case = "");
 // The pictures of an output folder (tools/plot/ldem_plot.py); `view` ("xz", ...) and `cut`
 // ("y=0.015") choose crack.png's projection or slice (empty: the default for the body).
 // 0: done; 1: the script failed (no matplotlib, or its own message); 2: not an output folder,

@@ -21,6 +21,7 @@
 #include <omp.h>
 #include <sstream>
 #include <sys/wait.h>
+#include <toml++/toml.h>
 #include <variant>
 
 #ifndef LDEM_PLOT_SCRIPT
@@ -271,7 +272,40 @@ int run_command(const std::string& path, const RunOptions& o) {
   });
 }
 
-int resume_command(const std::string& out_dir, int threads, bool plots, int grid_y, int grid_z) {
+namespace {
+
+// The tables of a resolved case that a changed case must keep: the body, its material, its
+// pre-cracks and its probes (the state, and the columns of the logs, are theirs).
+constexpr const char* kKeptTables[] = {"lattice", "geometry", "material", "fields", "region",
+                                       "fatigue", "precrack", "probe"};
+
+// Throws InputError naming the first table of kKeptTables that differs between the run's
+// resolved case (the file `was`) and the new one (`now`, the text of `path`'s resolution).
+void check_same_body(const std::string& was, const std::string& now, const std::string& path) {
+  const toml::table a = toml::parse(read_all(was)), b = toml::parse(now);
+  for (const char* key : kKeptTables) {
+    // Each as a table of that one key, written out.
+    toml::table ta, tb;
+    if (const toml::node* n = a.get(key))
+      ta.insert(key, *n);
+    if (const toml::node* n = b.get(key))
+      tb.insert(key, *n);
+    std::ostringstream x, y;
+    x << ta;
+    y << tb;
+    if (x.str() != y.str())
+      throw InputError(fmt::format(
+          "{}: [{}] differs from the run's ({}): a resume with a changed case may change its "
+          "supports, velocities, loads, node sets, time and analyses, not its body, material, "
+          "pre-cracks or probes; nothing was changed",
+          path, key, was));
+  }
+}
+
+} // namespace
+
+int resume_command(const std::string& out_dir, int threads, bool plots, int grid_y, int grid_z,
+                   std::optional<double> end, const std::string& new_case) {
   catch_stop_signals();
   if (threads > 0)
     omp_set_num_threads(threads);
@@ -280,39 +314,54 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
   RunState st;
   BuiltCase c;
   // The first process reads the run's state from the checkpoint (written by any number of
-  // processes) and checks its case file; every process builds the case (a distributed run its
-  // subdomain) and loads its part of the body's state from the file.
+  // processes) and checks its case file (unless a changed one is given); every process builds
+  // the case (a distributed run its subdomain) and loads its part of the body's state from the
+  // file.
   if (!agreed([&] {
         if (!writes)
           return;
         st = parse_run_state(checkpoint::read_header(path).meta);
-        std::string text;
-        try {
-          text = read_all(st.case_path);
-        } catch (const InputError&) {
-          throw InputError(fmt::format("{}: the case file of this run is gone; a resume needs "
-                                       "it unchanged",
-                                       st.case_path));
+        if (new_case.empty()) {
+          std::string text;
+          try {
+            text = read_all(st.case_path);
+          } catch (const InputError&) {
+            throw InputError(fmt::format("{}: the case file of this run is gone; a resume needs "
+                                         "it unchanged",
+                                         st.case_path));
+          }
+          if (checkpoint::fnv1a(text.data(), text.size()) != st.case_hash)
+            throw InputError(fmt::format(
+                "{}: the case file changed since the checkpoint in {}; a resume needs it "
+                "unchanged (start a new run instead, or go on with the changed case from the "
+                "checkpoint: ldem resume {} --case {})",
+                st.case_path, out_dir, out_dir, st.case_path));
         }
-        if (checkpoint::fnv1a(text.data(), text.size()) != st.case_hash)
-          throw InputError(fmt::format("{}: the case file changed since the checkpoint in {}; "
-                                       "a resume needs it unchanged (start a new run instead)",
-                                       st.case_path, out_dir));
         check_folder_matches(out_dir, st); // before anything in the folder changes
       }))
     return 2;
-  std::string case_path = st.case_path;
+  std::string case_path =
+      new_case.empty() ? st.case_path : fs::weakly_canonical(fs::absolute(new_case)).string();
   broadcast_from_first(case_path);
   // The run's options, which every process follows (a checkpoint is written by all of them).
   // (And cycle jumping's progress, which every process follows alike.)
-  double options[5] = {st.plots ? 1.0 : 0.0, static_cast<double>(st.checkpoint_every),
-                       st.checkpoint_seconds, st.jumped_cycles, st.window_start};
-  broadcast_from_first(options, 5);
+  double options[8] = {st.plots ? 1.0 : 0.0,
+                       static_cast<double>(st.checkpoint_every),
+                       st.checkpoint_seconds,
+                       st.jumped_cycles,
+                       st.window_start,
+                       st.end_time,
+                       static_cast<double>(st.energy_every),
+                       static_cast<double>(st.vtu_every)};
+  broadcast_from_first(options, 8);
   st.plots = options[0] != 0.0;
   st.checkpoint_every = static_cast<std::uint64_t>(options[1]);
   st.checkpoint_seconds = options[2];
   st.jumped_cycles = options[3];
   st.window_start = options[4];
+  st.end_time = options[5];
+  st.energy_every = static_cast<std::uint64_t>(options[6]);
+  st.vtu_every = static_cast<std::uint64_t>(options[7]);
   if (!agreed([&] { c = build_case(case_path, nullptr, process_count() == 1); }))
     return 2;
   const std::unique_ptr<RunBody> body = make_body(c, {grid_y, grid_z});
@@ -321,6 +370,50 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
   if (!agreed([&] { body->read_checkpoint(path); }))
     return 2;
   st.next = body->step_count(); // the checkpoint's next step, on every process
+  // A changed case goes on to its own end (or --end); the run's intervals stay.
+  if (!new_case.empty())
+    st.end_time = 0.0;
+  const double end_time = end ? *end : st.end_time > 0.0 ? st.end_time : c.spec.end_time;
+  if ((end || !new_case.empty()) &&
+      (!(end_time > body->time()) || !(end_time / body->dt() <= kMaxSteps))) {
+    if (writes)
+      fmt::print(stderr,
+                 "ldem: {}: {}: expected a time after the checkpoint's, t = {:.9g} s, and at "
+                 "most {:g} steps of dt = {:.4g} s, got {:g} s; nothing was changed\n",
+                 out_dir, end ? "--end" : case_path + ": time.end", body->time(), kMaxSteps,
+                 body->dt(), end_time);
+    return 2;
+  }
+  if (!new_case.empty() && c.spec.material.fatigue && c.spec.material.fatigue->jump) {
+    if (writes)
+      fmt::print(stderr,
+                 "ldem: {}: fatigue.jump: a run that jumps cycles goes on with its own case "
+                 "(the jumps follow its loads); nothing was changed\n",
+                 case_path);
+    return 2;
+  }
+  if (end)
+    st.end_time = *end;
+  // A changed case replaces case.resolved.toml (the run's is kept as
+  // case.resolved.until_step_<n>.toml), once its body is found the same.
+  if (!new_case.empty() && !agreed([&] {
+        if (!writes)
+          return;
+        const std::string resolved = resolved_case_toml(c, body->numbers());
+        const std::string was = out_dir + "/case.resolved.toml";
+        check_same_body(was, resolved, case_path);
+        fs::copy_file(was, fmt::format("{}/case.resolved.until_step_{}.toml", out_dir, st.next),
+                      fs::copy_options::overwrite_existing);
+        write_file(was, resolved);
+        st.resolved_hash = checkpoint::fnv1a(resolved.data(), resolved.size());
+        const std::string text = read_all(case_path);
+        st.case_hash = checkpoint::fnv1a(text.data(), text.size());
+        st.case_path = case_path;
+      }))
+    return 2;
+  if (end || !new_case.empty())
+    st.continued.push_back({st.next, end_time, new_case.empty() ? std::string() : case_path});
+  st.case_changed = !new_case.empty();
   if (writes)
     fmt::print(stderr, "ldem: resuming {} at step {} (t = {:.4g} s)\n", st.case_path, st.next,
                body->time());

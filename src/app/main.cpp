@@ -113,10 +113,19 @@ int main(int argc, char** argv) {
   std::string resume_dir;
   int resume_threads = 0;
   bool resume_no_plot = false;
-  auto* cmd_resume =
-      app.add_subcommand("resume", "Continue an interrupted run from its checkpoint; the outputs "
-                                   "continue as if the run had never stopped");
-  cmd_resume->add_option("dir", resume_dir, "Output folder of the interrupted run")->required();
+  std::optional<double> resume_end;
+  auto* cmd_resume = app.add_subcommand(
+      "resume", "Continue an interrupted run from its checkpoint, or run a finished one further "
+                "(--end); the outputs continue as if the run had never stopped");
+  cmd_resume->add_option("dir", resume_dir, "Output folder of the run")->required();
+  cmd_resume->add_option("--end", resume_end,
+                         "Run to this time [s] instead of the run's end (a time after the "
+                         "checkpoint's; a finished run continues from its end checkpoint)");
+  std::string resume_case;
+  cmd_resume->add_option("--case", resume_case,
+                         "Go on under this case file: other supports, velocities, loads, node "
+                         "sets or end time, the same body, material, pre-cracks and probes")
+      ->check(CLI::ExistingFile);
   cmd_resume->add_option("--threads", resume_threads, "OpenMP threads (0: all cores)")
       ->check(threads_check);
   cmd_resume->add_flag("--no-plot", resume_no_plot, "Do not make the PNG plots");
@@ -256,7 +265,8 @@ int main(int argc, char** argv) {
       return ldem::run_command(case_path, run);
     }
     if (cmd_resume->parsed())
-      return ldem::resume_command(resume_dir, resume_threads, !resume_no_plot, grid_y, grid_z);
+      return ldem::resume_command(resume_dir, resume_threads, !resume_no_plot, grid_y, grid_z,
+                                  resume_end, resume_case);
     if (cmd_check->parsed())
       return ldem::check_command(case_path);
     if (cmd_plot->parsed())

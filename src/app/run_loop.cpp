@@ -93,6 +93,15 @@ std::string run_state_bytes(const RunState& st) {
   put(meta, st.checkpoint_seconds);
   put(meta, st.jumped_cycles);
   put(meta, st.window_start);
+  put(meta, st.end_time);
+  put(meta, st.energy_every);
+  put(meta, st.vtu_every);
+  put(meta, static_cast<std::uint64_t>(st.continued.size()));
+  for (const RunState::Continuation& k : st.continued) {
+    put(meta, k.step);
+    put(meta, k.end_time);
+    checkpoint::put_str(meta, k.case_path);
+  }
   return meta;
 }
 
@@ -128,6 +137,18 @@ RunState parse_run_state(const std::string& meta) {
   get(meta, pos, st.checkpoint_seconds);
   get(meta, pos, st.jumped_cycles);
   get(meta, pos, st.window_start);
+  get(meta, pos, st.end_time);
+  get(meta, pos, st.energy_every);
+  get(meta, pos, st.vtu_every);
+  std::uint64_t nc = 0;
+  get(meta, pos, nc);
+  for (std::uint64_t i = 0; i < nc; ++i) {
+    RunState::Continuation k;
+    get(meta, pos, k.step);
+    get(meta, pos, k.end_time);
+    k.case_path = checkpoint::get_str(meta, pos);
+    st.continued.push_back(std::move(k));
+  }
   return st;
 }
 
@@ -162,7 +183,27 @@ void check_folder_matches(const std::string& out_dir, const RunState& st) {
   }
 }
 
+std::uint64_t run_steps(double end_time, double dt) {
+  return static_cast<std::uint64_t>(std::ceil(end_time / dt - 1e-9));
+}
+
 namespace {
+// summary.json's record of the resumes that changed the run (`ldem resume --end`, `--case`):
+// where each began, the end it ran to and, if it changed the case, the case it went on with;
+// nothing for a run never continued so.
+std::string continued_json(const RunState& st, double dt) {
+  if (st.continued.empty())
+    return {};
+  std::string list;
+  for (const RunState::Continuation& k : st.continued)
+    list += fmt::format("{}{{\"step\": {}, \"time\": {:.9g}, \"end_time\": {:.9g}{}}}",
+                        list.empty() ? "" : ", ", k.step, static_cast<double>(k.step) * dt,
+                        k.end_time,
+                        k.case_path.empty() ? std::string()
+                                            : fmt::format(", \"case\": \"{}\"", k.case_path));
+  return fmt::format("  \"continued\": [{}],\n", list);
+}
+
 bool energies_finite(const EnergyReport& r) {
   return std::isfinite(r.external_work) && std::isfinite(r.elastic) && std::isfinite(r.kinetic) &&
          std::isfinite(r.damage_dissipated) && std::isfinite(r.damping_dissipated) &&
@@ -176,11 +217,14 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   const Lattice& lat = body.lattice();
   const bool writes = body.writes();
   const std::string dir = out_dir + "/";
-  auto steps = static_cast<std::uint64_t>(std::ceil(s.end_time / body.dt() - 1e-9));
-  const std::uint64_t every =
-      s.output.energy_every ? s.output.energy_every : std::max<std::uint64_t>(1, steps / 500);
-  const std::uint64_t vtu_every =
-      s.output.vtu_every ? s.output.vtu_every : std::max<std::uint64_t>(1, steps / 20);
+  auto steps = run_steps(st.end_time > 0.0 ? st.end_time : s.end_time, body.dt());
+  // (Fixed at the run's start: a continued run keeps them.)
+  if (!st.energy_every)
+    st.energy_every =
+        s.output.energy_every ? s.output.energy_every : std::max<std::uint64_t>(1, steps / 500);
+  if (!st.vtu_every)
+    st.vtu_every = s.output.vtu_every ? s.output.vtu_every : std::max<std::uint64_t>(1, steps / 20);
+  const std::uint64_t every = st.energy_every, vtu_every = st.vtu_every;
 
   auto open = [&](const char* name, int i) -> std::unique_ptr<OutputFile> {
     if (!writes)
@@ -306,6 +350,11 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
     if (look && (signal = body.max_over_processes(g_interrupted)) != 0)
       break;
     bool save = n > first && checkpoint_every && n % checkpoint_every == 0;
+    // The end: the state whose report is the run's last row, before the step that reports it
+    // (output.end_checkpoint), from which a resume with a later end goes on.
+    save |= n == steps && n > first && s.output.end_checkpoint;
+    // A changed case: its checkpoint at once (the folder's case.resolved.toml is the new one).
+    save |= n == first && st.case_changed;
     if (look && n > first && checkpoint_seconds > 0) // the first process's clock decides
       save |=
           body.max_over_processes(writes && std::chrono::duration<double>(
@@ -436,7 +485,7 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
           "  \"process_grid\": [1, {}, {}],\n  \"bytes_per_module\": {:.1f},\n"
           "  \"max_balance_error\": {:.6g},\n  \"softening_bars_at_end\": {},\n"
           "  \"broken_bars_at_end\": {},\n  \"precracked_bars\": {},\n"
-          "  \"interrupted\": {},\n  \"stopped_by\": {},\n{}  \"analysis\": {{}}\n}}\n",
+          "  \"interrupted\": {},\n  \"stopped_by\": {},\n{}{}  \"analysis\": {{}}\n}}\n",
           st.case_path, s.title, lat.num_present_nodes(), lat.num_present_bars(), simulated,
           body.dt(), body.stable_step().dt, static_cast<double>(simulated) * body.dt(), wall,
           static_cast<double>(lat.num_present_bars()) * static_cast<double>(done) / wall,
@@ -451,7 +500,8 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
                                     c.cycle->frequency *
                                         std::max(0.0, static_cast<double>(simulated) * body.dt() -
                                                           c.cycle->t_constant))
-                  : std::string()));
+                  : std::string(),
+          continued_json(st, body.dt())));
   if (!blow_up.empty()) {
     fmt::print(stderr, "ldem: error: {}\n", blow_up);
     return 3;

@@ -37,6 +37,24 @@ struct RunState {
   // (negative: none yet).
   double jumped_cycles = 0.0;
   double window_start = -1.0;
+  // The time the run goes to (0: the case's time.end; `ldem resume --end` sets it) and the
+  // steps between its rows and between its snapshots, fixed when it starts (its case may give
+  // 0: a number of rows over its first end), so that a run continued to a later end writes
+  // what one run to that end with those intervals would.
+  double end_time = 0.0;
+  std::uint64_t energy_every = 0, vtu_every = 0;
+  // Each resume that changed the run (`ldem resume --end`, `--case`): the step it resumed at,
+  // the end it ran to, and the case file it went on with ("" if the same). summary.json lists
+  // them.
+  struct Continuation {
+    std::uint64_t step = 0;
+    double end_time = 0.0;
+    std::string case_path;
+  };
+  std::vector<Continuation> continued;
+  // Set by a resume that changed the case: the run writes a checkpoint before its first step,
+  // so that the folder (its new case.resolved.toml) and its checkpoint agree from the start.
+  bool case_changed = false;
 };
 
 // The logs of a run, in the order of RunState::lengths.
@@ -47,6 +65,9 @@ inline constexpr const char* kLogs[3] = {"energy.csv", "events.csv", "probes.csv
 // checkpoint counted, each snapshot listed with its size. `ldem resume` calls it before it
 // changes anything in the folder.
 void check_folder_matches(const std::string& out_dir, const RunState& st);
+
+// The steps of a run to `end_time` at dt: the last one's start is reported as the end.
+std::uint64_t run_steps(double end_time, double dt);
 
 // The run's state as a checkpoint's meta (io/checkpoint.hpp), and back.
 std::string run_state_bytes(const RunState& st);

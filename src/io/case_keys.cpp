@@ -150,6 +150,7 @@ const std::vector<KeyDecl>& case_keys() {
 
     {"output", "checkpoint_every", "integer", "0", "steps", 0, kInf, false, false, "", "Steps between checkpoints in checkpoint/ (0: by wall time only). A stop by Ctrl-C or SIGTERM always leaves one; `ldem resume DIR` continues."},
     {"output", "checkpoint_seconds", "float", "600", "s", 0, kInf, false, false, "", "Wall-clock seconds between checkpoints (0: never by time)."},
+    {"output", "end_checkpoint", "bool", "true", "", -kInf, kInf, false, false, "", "At the end, a checkpoint in checkpoint/ of the run's last reported state, from which `ldem resume DIR --end T` runs it on to a later time T (the state takes about 200 bytes per module)."},
 
     {"analysis", "crack", "bool", "false", "", -kInf, kInf, false, false, "", "After the run, analyse the crack (as `ldem analyze crack DIR`): crack_tip.csv and `analysis.crack` in summary.json."},
     {"analysis", "min_branch_length", "float", "-", "m", 0, kInf, true, false, "", "Default 6 L. A branch must run at least this far beyond its bifurcation (shorter side cracks are not branches)."},

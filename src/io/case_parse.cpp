@@ -1002,6 +1002,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
   c.output.checkpoint_every =
       static_cast<std::uint64_t>(r.get_int(out, "output", "checkpoint_every", "output."));
   c.output.checkpoint_seconds = r.get_float(out, "output", "checkpoint_seconds", "output.");
+  c.output.end_checkpoint = r.get_bool(out, "output", "end_checkpoint", "output.");
 
   const toml::table& an = table("analysis");
   r.check_known(an, "analysis", "analysis.");

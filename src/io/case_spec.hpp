@@ -85,6 +85,7 @@ struct OutputSpec {
   bool plots = true;
   std::uint64_t checkpoint_every = 0; // steps between checkpoints (0: by wall time only)
   double checkpoint_seconds = 600.0;  // wall-clock seconds between checkpoints (0: never)
+  bool end_checkpoint = true;         // a checkpoint of the last reported state at the end
 };
 
 // What `ldem run` analyses after the run ([analysis]); lengths 0 mean the default (in L).

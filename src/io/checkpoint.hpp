@@ -25,7 +25,7 @@
 namespace ldem::checkpoint {
 
 inline constexpr char kMagic[8] = {'L', 'D', 'E', 'M', 'C', 'K', 'P', 'T'};
-inline constexpr std::uint32_t kVersion = 6; // 6: the last report has fatigue_dissipated
+inline constexpr std::uint32_t kVersion = 7; // 7: the run's end and output intervals in its meta
 inline constexpr std::uint64_t kHeaderBytes = 8 + 4 + 3 * 8;
 
 template <class T> void put(std::string& out, const T& v) {
