@@ -293,6 +293,17 @@ if "$LDEM" run "$T/weibull.toml" --out "$T/weibull" >/dev/null 2>"$T/stderr" && 
   [ "$(head -1 "$T/weibull/fields.csv")" = "bar,x,y,z,E,Gf,e_p,e_r" ] &&
   grep -q 'Name="Gf"' "$T/weibull/lattice_000000.vtu"; then ok; else bad "Weibull fields: $(cat "$T/stderr")"; fi
 
+# A choice of snapshot arrays (output.vtu_arrays): the snapshots hold those alone, read by VTK;
+# a name the run does not have is refused before any output.
+sed 's/^energy_every = 50/energy_every = 50\nvtu_arrays = ["displacement", "damage"]/' "$GOOD" >"$T/arrays.toml"
+"$LDEM" run "$T/arrays.toml" --out "$T/arrays" --no-plot >/dev/null 2>"$T/stderr" &&
+  /usr/bin/python3 "$SRC/tests/check_outputs.py" "$T/arrays" | has "arrays \['damage', 'displacement'\]" &&
+  [ "$(stat -c %s "$T/arrays/lattice_000001.vtu")" -lt "$(stat -c %s "$T/long/lattice_000001.vtu")" ] && ok || bad "vtu_arrays: $(cat "$T/stderr")"
+sed 's/^energy_every = 50/energy_every = 50\nvtu_arrays = ["displacement", "dmg"]/' "$GOOD" >"$T/arrays_bad.toml"
+"$LDEM" run "$T/arrays_bad.toml" --out "$T/arrays_bad" >/dev/null 2>"$T/stderr"
+rc=$?
+[ $rc -eq 2 ] && [ ! -e "$T/arrays_bad" ] && grep -q 'arrays_bad.toml:[0-9]*: output.vtu_arrays: expected names among "displacement", "velocity", "damage", "state", "axial_force", "strain", "E", "Gf", "e_p", "e_r" (this law.s), got "dmg"' "$T/stderr" && ok || bad "vtu_arrays with a bad name: rc $rc, $(cat "$T/stderr")"
+
 # crack.png of a 3-D body: the tutorial plate made 12 x 8 x 10 modules, notched through its
 # 8-module depth, cracks across z in an x-y plane: the default shows that crack face on (x-y,
 # coloured by z) beside a slice through the middle of the thinnest direction (y = 20 mm);

@@ -130,6 +130,15 @@ for f in energy.csv events.csv probes.csv lattice.pvd $(ls "$T/long-ref" | grep 
   cmp -s "$T/long-ref/$f" "$T/cont/$f" || bad "resume --end on $((np + 1)) processes: $f differs"
 done
 
+# Snapshots with a choice of arrays (output.vtu_arrays, a material field among them): the same
+# folder from 2 processes as from one.
+sed 's/^end_checkpoint = false/vtu_arrays = ["displacement", "state", "E"]/' "$T/graded.toml" >"$T/arrays.toml"
+"$LDEM" run "$T/arrays.toml" --out "$T/arrays-1" --no-plot --threads 1 >/dev/null 2>&1
+mpi 2 run "$T/arrays.toml" --out "$T/arrays-2" --no-plot --threads 1 >/dev/null 2>"$T/err" ||
+  bad "vtu_arrays on 2 processes: $(cat "$T/err")"
+compare "$T/arrays-1" "$T/arrays-2" "vtu_arrays: 2 processes against one"
+/usr/bin/python3 "$SRC/tests/check_outputs.py" "$T/arrays-2" >/dev/null || bad "vtu_arrays: the snapshots of 2 processes"
+
 # Ctrl-C: mpirun passes it on to the processes (as SIGTERM), which agree on a step, write the
 # body's checkpoint and stop; resumed on another number of processes, the folder is the
 # uninterrupted run's. LONG_END: the run's end time, long enough that the signal arrives first.

@@ -1,6 +1,8 @@
 // Building a case: from a case file to a ready Simulation (or, for a distributed run, what
 // each process needs to build its subdomain), and the resolved case the run reports.
 #include "app/case_run.hpp"
+#include "io/output.hpp"
+#include "solver/law_kernels.hpp"
 #include "material/bar_law_fatigue.hpp"
 #include "solver/laws.hpp"
 #include "util/error.hpp"
@@ -502,6 +504,19 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     c.options.step.end = s.end_time;
     c.options.damping = s.damping;
     c.options.law = find_law(s.law);
+    if (!s.output.vtu_arrays.empty()) {
+      const std::vector<std::string> names =
+          vtu_array_names(c.options.law ? c.options.law->state_arrays
+                                        : std::span<const StateArray>());
+      for (const std::string& a : s.output.vtu_arrays)
+        if (std::find(names.begin(), names.end(), a) == names.end()) {
+          std::string list;
+          for (const std::string& n : names)
+            list += (list.empty() ? "\"" : ", \"") + n + "\"";
+          throw InputError(fmt::format(
+              "output.vtu_arrays: expected names among {} (this law's), got \"{}\"", list, a));
+        }
+    }
     if (s.material.fatigue && s.damping == 0.0)
       c.warnings.push_back(
           "time.damping = 0 with a fatigue law: the ringing each break sets off stays in the "
@@ -861,6 +876,12 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
                           {"vtu_every", static_cast<std::int64_t>(s.output.vtu_every)},
                           {"vtu", s.output.vtu},
                           {"plots", s.output.plots}});
+  if (!s.output.vtu_arrays.empty()) {
+    toml::array arrays;
+    for (const std::string& a : s.output.vtu_arrays)
+      arrays.push_back(a);
+    root["output"].as_table()->insert("vtu_arrays", arrays);
+  }
   if (!probes.empty())
     root.insert("probe", probes);
   {

@@ -390,7 +390,7 @@ int DistributedBody::max_over_processes(int value) const {
 }
 
 void DistributedBody::prepare_snapshots() {
-  vtu_ = std::make_unique<SubdomainVtuWriter>(*run_, lattice());
+  vtu_ = std::make_unique<SubdomainVtuWriter>(*run_, lattice(), c_.spec.output.vtu_arrays);
 }
 
 void DistributedBody::write_snapshot(const std::string& path) {

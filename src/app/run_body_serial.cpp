@@ -23,7 +23,9 @@ public:
   index_t first_node_beyond(double limit) override { return c_.sim->first_node_beyond(limit); }
   int max_over_processes(int value) const override { return value; } // the only process
   Vec3 displacement(index_t node) override { return c_.sim->displacement(node); }
-  void prepare_snapshots() override { vtu_ = std::make_unique<LatticeVtuWriter>(*c_.sim); }
+  void prepare_snapshots() override {
+    vtu_ = std::make_unique<LatticeVtuWriter>(*c_.sim, c_.spec.output.vtu_arrays);
+  }
   void write_snapshot(const std::string& path) override;
 
 private:

@@ -1003,6 +1003,18 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
       static_cast<std::uint64_t>(r.get_int(out, "output", "checkpoint_every", "output."));
   c.output.checkpoint_seconds = r.get_float(out, "output", "checkpoint_seconds", "output.");
   c.output.end_checkpoint = r.get_bool(out, "output", "end_checkpoint", "output.");
+  if (const toml::node* a = out.get("vtu_arrays")) {
+    const toml::array* arr = a->as_array();
+    if (!arr || arr->empty())
+      r.fail(a, "output.vtu_arrays",
+             fmt::format("expected a list of array names, got {}", r.describe(*a)));
+    for (const toml::node& e : *arr) {
+      if (!e.is_string())
+        r.fail(&e, "output.vtu_arrays",
+               fmt::format("expected array names (strings), got {}", r.describe(e)));
+      c.output.vtu_arrays.push_back(*e.value<std::string>());
+    }
+  }
 
   const toml::table& an = table("analysis");
   r.check_known(an, "analysis", "analysis.");

@@ -86,6 +86,8 @@ struct OutputSpec {
   std::uint64_t checkpoint_every = 0; // steps between checkpoints (0: by wall time only)
   double checkpoint_seconds = 600.0;  // wall-clock seconds between checkpoints (0: never)
   bool end_checkpoint = true;         // a checkpoint of the last reported state at the end
+  // The snapshots' optional arrays (vtu_array_names, io/output.hpp); empty: all of them.
+  std::vector<std::string> vtu_arrays;
 };
 
 // What `ldem run` analyses after the run ([analysis]); lengths 0 mean the default (in L).

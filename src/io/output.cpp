@@ -187,8 +187,23 @@ PresentRanks::PresentRanks(const Lattice& lat) {
     bar[b + 1] = bar[b] + lat.bar_present(b);
 }
 
-VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids) {
+std::vector<std::string> vtu_array_names(std::span<const StateArray> law_states) {
+  std::vector<std::string> names = {"displacement", "velocity", "damage", "state", "axial_force",
+                                    "strain"};
+  for (const StateArray& a : law_states)
+    if (a.in_snapshots)
+      names.emplace_back(a.name);
+  for (const char* f : {"E", "Gf", "e_p", "e_r"})
+    names.emplace_back(f);
+  return names;
+}
+
+VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids,
+                     const std::vector<std::string>& arrays) {
   const bool fields = sim.table().per_bar();
+  const auto chosen = [&](std::string_view name) {
+    return arrays.empty() || std::find(arrays.begin(), arrays.end(), name) != arrays.end();
+  };
   VtuLayout l;
   std::string s = "<?xml version=\"1.0\"?>\n"
                   "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
@@ -197,6 +212,9 @@ VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids) {
   std::uint64_t offset = 0; // in the appended data
   auto tag = [&](VtuLayout::Array a, const char* type, const char* name, int components,
                  std::uint64_t bytes) {
+    const bool always = a >= VtuLayout::Points;
+    if (!always && !chosen(name))
+      return;
     s += fmt::format("<DataArray type=\"{}\" Name=\"{}\" NumberOfComponents=\"{}\" "
                      "format=\"appended\" offset=\"{}\"/>\n",
                      type, name, components, offset);
@@ -220,7 +238,7 @@ VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids) {
     tag(VtuLayout::BarId, "Int32", "bar", 1, fb);
   const std::span<const StateArray> states = sim.bar_state_arrays();
   for (std::size_t a = 0; a < states.size(); ++a)
-    if (states[a].in_snapshots) {
+    if (states[a].in_snapshots && chosen(states[a].name)) {
       s += fmt::format("<DataArray type=\"Float32\" Name=\"{}\" NumberOfComponents=\"1\" "
                        "format=\"appended\" offset=\"{}\"/>\n",
                        states[a].name, offset);
@@ -269,7 +287,8 @@ void keep_present(std::vector<T>& v, const std::vector<index_t>& ranks, std::siz
 
 } // namespace
 
-LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) : ranks_(sim.lattice()) {
+LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim, const std::vector<std::string>& arrays)
+    : ranks_(sim.lattice()) {
   const Lattice& lat = sim.lattice();
   const index_t nn = lat.num_nodes(), nb = lat.num_bars();
   nn_ = nn;
@@ -323,8 +342,9 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) : ranks_(sim.lattice()
     static_block_.insert(static_block_.end(), q, q + bytes);
   };
   const std::uint64_t fb = 4ull * wb;
-  const VtuLayout layout = vtu_layout(wn, wb, sim, ranks_.shaped());
+  const VtuLayout layout = vtu_layout(wn, wb, sim, ranks_.shaped(), arrays);
   law_states_ = layout.states;
+  std::copy(std::begin(layout.present), std::end(layout.present), std::begin(present_));
   if (sim.table().per_bar()) {
     // The material fields per bar: E, Gf (its fracture energy per fracture area, eq. 11),
     // e_p and e_r.
@@ -337,10 +357,11 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim) : ranks_(sim.lattice()
     std::vector<float> e_p = to_float(sim.table().e_p_bar()), e_r = to_float(sim.table().e_r_bar());
     for (std::vector<float>* v : {&E, &Gf, &e_p, &e_r})
       keep_present(*v, ranks_.bar, 1);
-    add_static(E.data(), fb);
-    add_static(Gf.data(), fb);
-    add_static(e_p.data(), fb);
-    add_static(e_r.data(), fb);
+    const std::pair<VtuLayout::Array, const std::vector<float>*> field[] = {
+        {VtuLayout::E, &E}, {VtuLayout::Gf, &Gf}, {VtuLayout::EP, &e_p}, {VtuLayout::ER, &e_r}};
+    for (const auto& [a, v] : field)
+      if (layout.present[a])
+        add_static(v->data(), fb);
   }
   add_static(points.data(), 3 * 4ull * wn);
   add_static(conn.data(), 2 * fb);
@@ -409,26 +430,29 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   }
   OutputFile out(path);
   out.write(header_);
-  auto block = [&](const void* data, std::uint64_t bytes) {
+  // (The arrays in the layout's order; those not chosen are left out.)
+  auto block = [&](VtuLayout::Array a, const void* data, std::uint64_t bytes) {
+    if (!present_[a])
+      return;
     out.write(reinterpret_cast<const char*>(&bytes), sizeof bytes);
     out.write(static_cast<const char*>(data), bytes);
   };
-  block(disp_.data(), 3 * std::size_t{wn} * sizeof(float));
-  block(vel_.data(), 3 * std::size_t{wn} * sizeof(float));
-  if (shaped)
-    block(node_id_.data(), node_id_.size() * sizeof(std::int32_t));
-  block(damage_f_.data(), std::size_t{wb} * sizeof(float));
-  block(state_.data(), wb);
-  block(force_f_.data(), std::size_t{wb} * sizeof(float));
-  block(strain_f_.data(), std::size_t{wb} * sizeof(float));
-  if (shaped)
-    block(bar_id_.data(), bar_id_.size() * sizeof(std::int32_t));
+  block(VtuLayout::Displacement, disp_.data(), 3 * std::size_t{wn} * sizeof(float));
+  block(VtuLayout::Velocity, vel_.data(), 3 * std::size_t{wn} * sizeof(float));
+  block(VtuLayout::NodeId, node_id_.data(), node_id_.size() * sizeof(std::int32_t));
+  block(VtuLayout::Damage, damage_f_.data(), std::size_t{wb} * sizeof(float));
+  block(VtuLayout::State, state_.data(), wb);
+  block(VtuLayout::Force, force_f_.data(), std::size_t{wb} * sizeof(float));
+  block(VtuLayout::Strain, strain_f_.data(), std::size_t{wb} * sizeof(float));
+  block(VtuLayout::BarId, bar_id_.data(), bar_id_.size() * sizeof(std::int32_t));
   for (std::size_t a : law_states_) {
     law_state_.clear();
     sim.append_bar_states(a, 0, nb_, law_state_);
     law_state_f_.assign(law_state_.begin(), law_state_.end());
     keep_present(law_state_f_, ranks_.bar, 1);
-    block(law_state_f_.data(), law_state_f_.size() * sizeof(float));
+    const std::uint64_t bytes = law_state_f_.size() * sizeof(float);
+    out.write(reinterpret_cast<const char*>(&bytes), sizeof bytes);
+    out.write(reinterpret_cast<const char*>(law_state_f_.data()), bytes);
   }
   out.write(static_block_.data(), static_block_.size());
   out.write(VtuLayout::trailer);

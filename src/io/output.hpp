@@ -109,10 +109,17 @@ struct VtuLayout {
     return state_at[s] + sizeof(std::uint64_t) + index * sizeof(float);
   }
 };
+// The arrays a snapshot may hold, by the names they have in it (output.vtu_arrays chooses among
+// them): displacement and velocity per node; damage, state, axial_force and strain per bar; the
+// bar law's state arrays that snapshots carry; the material fields E, Gf, e_p and e_r (where the
+// material varies). The reference positions, the cells and a shaped body's node and bar numbers
+// are always written.
+std::vector<std::string> vtu_array_names(std::span<const StateArray> law_states);
 // The layout of a snapshot of `sim`'s body (`nodes` and `bars`: the whole body's present ones):
-// the fields where its material varies, the law's state arrays it carries, and with `ids` (a
-// shaped body) each node's and bar's number in the body.
-VtuLayout vtu_layout(index_t nodes, index_t bars, const Simulation& sim, bool ids = false);
+// the arrays `arrays` names (empty: all of vtu_array_names), the fields only where the material
+// varies, and with `ids` (a shaped body) each node's and bar's number in the body.
+VtuLayout vtu_layout(index_t nodes, index_t bars, const Simulation& sim, bool ids = false,
+                     const std::vector<std::string>& arrays = {});
 
 // A shaped body's modules as a NumPy .npy file (body.npy of a run folder): uint8, shape
 // (nx, ny, nz), indexed [i, j, k], 1 where the module is present (Fortran order: i fastest, the
@@ -133,7 +140,8 @@ struct PresentRanks {
 // snapshot only converts and writes the displacements, velocities and bar values.
 class LatticeVtuWriter {
 public:
-  explicit LatticeVtuWriter(const Simulation& sim);
+  // `arrays`: the optional arrays to write (vtu_array_names; empty: all).
+  explicit LatticeVtuWriter(const Simulation& sim, const std::vector<std::string>& arrays = {});
   void write(const Simulation& sim, const std::string& path);
 
 private:
@@ -146,6 +154,7 @@ private:
   std::vector<std::uint8_t> state_;
   std::vector<double> damage_, force_, strain_;
   std::vector<std::size_t> law_states_; // the law's state arrays written (VtuLayout::states)
+  bool present_[VtuLayout::kArrays] = {}; // the arrays written (VtuLayout::present)
   std::vector<double> law_state_;
   std::vector<float> law_state_f_;
 };

@@ -6,11 +6,12 @@
 
 namespace ldem {
 
-SubdomainVtuWriter::SubdomainVtuWriter(const SubdomainRun& run, const Lattice& whole)
+SubdomainVtuWriter::SubdomainVtuWriter(const SubdomainRun& run, const Lattice& whole,
+                                       const std::vector<std::string>& arrays)
     : whole_(whole), ranks_(whole),
       layout_(vtu_layout(static_cast<index_t>(whole.num_present_nodes()),
                          static_cast<index_t>(whole.num_present_bars()), run.sim(),
-                         ranks_.shaped())),
+                         ranks_.shaped(), arrays)),
       nodes_(subdomain_node_spans(run.subdomain(), whole, true)),
       bars_(subdomain_bar_spans(run.subdomain(), whole, true)) {}
 
@@ -55,7 +56,8 @@ void SubdomainVtuWriter::write(const SubdomainRun& run, const std::string& path)
   const Simulation& sim = run.sim();
   index_t first = 0; // the file's number of the span's first item written
   auto put = [&](VtuLayout::Array a, const Span&, std::size_t width) {
-    file.write_at(l.value_at(a, first, width), buf_.data(), buf_.size());
+    if (l.present[a]) // (an array output.vtu_arrays leaves out: not written)
+      file.write_at(l.value_at(a, first, width), buf_.data(), buf_.size());
   };
   // Nodes: displacement, velocity and reference position, as LatticeVtuWriter converts them.
   auto vec3 = [](float* o, Vec3 v) {
@@ -85,7 +87,8 @@ void SubdomainVtuWriter::write(const SubdomainRun& run, const std::string& path)
   // Bars: the window's states, damage and forces (owned bars taken), connectivity in the
   // body's node numbers, and the material fields where they vary.
   sim.bar_snapshot(state_, damage_, force_, &strain_);
-  const bool fields = l.present[VtuLayout::E];
+  const bool fields = l.present[VtuLayout::E] || l.present[VtuLayout::Gf] ||
+                      l.present[VtuLayout::EP] || l.present[VtuLayout::ER];
   for (const Span& s : bars_) {
     const index_t lb = s.local_first, gb = s.global_first;
     first = picks_of(s, ranks_.bar, picks_);

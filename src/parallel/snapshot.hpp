@@ -15,7 +15,9 @@ namespace ldem {
 class SubdomainVtuWriter {
 public:
   // `whole` is the body's lattice; run.sim()'s table says whether the material fields vary.
-  SubdomainVtuWriter(const SubdomainRun& run, const Lattice& whole);
+  // `arrays`: the optional arrays to write (vtu_array_names; empty: all).
+  SubdomainVtuWriter(const SubdomainRun& run, const Lattice& whole,
+                     const std::vector<std::string>& arrays = {});
   // The snapshot of the current state at `path`. Collective.
   void write(const SubdomainRun& run, const std::string& path);
 
