@@ -1,6 +1,7 @@
 // Body forces (an acceleration on every node's lumped mass) and forces spread over a surface by
 // the area each node stands for (traction and total on any set that covers some surface).
 #include "app/case_run.hpp"
+#include "csv_columns.hpp"
 #include "lattice/node_set.hpp"
 #include "util/error.hpp"
 
@@ -12,7 +13,6 @@
 #include <map>
 #include <memory>
 #include <numeric>
-#include <sstream>
 #include <string>
 #include <unistd.h>
 #include <vector>
@@ -281,27 +281,6 @@ from = [0.04, 0.04, 0.08]
 to = [0.04, 0.04, 0.16]
 )";
 
-// A CSV file of the run by column name.
-std::map<std::string, std::vector<double>> read_csv(const fs::path& file) {
-  std::ifstream in(file);
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  {
-    std::istringstream ls(line);
-    for (std::string x; std::getline(ls, x, ',');)
-      names.push_back(x);
-  }
-  std::map<std::string, std::vector<double>> columns;
-  while (std::getline(in, line)) {
-    std::istringstream ls(line);
-    std::size_t i = 0;
-    for (std::string x; std::getline(ls, x, ','); ++i)
-      columns[names.at(i)].push_back(std::stod(x));
-  }
-  return columns;
-}
-
 // The column's run with the load `load` ([[load]] p, ramped over 1 ms): its last row of
 // probes.csv and of energy.csv.
 std::map<std::string, double> loaded_column(const std::string& load, const std::string& name) {
@@ -316,7 +295,7 @@ std::map<std::string, double> loaded_column(const std::string& load, const std::
   EXPECT_EQ(run_command((dir / "column.toml").string(), o), 0);
   std::map<std::string, double> last;
   for (const char* file : {"probes.csv", "energy.csv"})
-    for (const auto& [column, values] : read_csv(dir / "out" / file))
+    for (const auto& [column, values] : testing::csv_columns(dir / "out" / file))
       last[column] = values.empty() ? NAN : values.back();
   return last;
 }

@@ -624,22 +624,41 @@ traction = [0, 0, 2e6]
   rg.resolved = toml::parse(resolved_case_toml(f, body_numbers(*f.sim)));
   EXPECT_NEAR(load_remote_stress(rg, *rg.resolved["load"][0].as_table()), 2.5e7, 1e-6);
 
-  // Refused: a traction on a set whose nodes' areas are not known, both force and traction,
-  // neither.
+  // Any other set: the body's surface it covers. The box around the corner module's nodes
+  // covers that module's x- and z- faces (its y faces are not surface: the plate is one module
+  // thick, a slice in plane strain): 2 L^2.
   const std::string on_box =
       std::string(traction_case)
           .replace(traction_case.find("set = \"top\"\ntraction"), 11, "set = \"block\"");
-  std::string e = build_error_of(on_box);
-  EXPECT_NE(e.find("load[0].traction: load \"pull\" has a traction: expected a node set given "
-                   "by face or face_centres, whose nodes' areas are known; got \"block\", box"),
+  std::ofstream(path) << on_box;
+  const BuiltCase b = build_case(path);
+  area = 0.0;
+  for (double a : b.conditions.loads[0].weight)
+    area += a;
+  EXPECT_NEAR(area, 2e-4, 1e-18);
+  // Refused: a traction on a set that covers none of the surface, two ways to give the force,
+  // none.
+  const std::string on_node =
+      std::string(traction_case)
+          .replace(traction_case.find("set = \"top\"\ntraction"), 11, "set = \"node\"") +
+      "\n[[node_set]]\nname = \"node\"\nbox_min = [0.02, 0, 0.02]\nbox_max = [0.02, 0, 0.02]\n";
+  std::string e = build_error_of(on_node);
+  EXPECT_NE(e.find("load[0].traction: load \"pull\" has a traction: expected a node set that "
+                   "covers some of the body's surface (the four corners of a module face on it), "
+                   "got \"node\", box"),
             std::string::npos)
       << e;
   e = build_error_of(edit("dofs = \"z\"", "dofs = \"x\"") + load + "force = [0, 0, 1]\n");
   EXPECT_NE(e.find("load[0].traction"), std::string::npos) << e;
-  EXPECT_NE(e.find("expected force or traction, not both"), std::string::npos) << e;
+  EXPECT_NE(e.find("expected one of force, traction, total and acceleration, got force and "
+                   "traction"),
+            std::string::npos)
+      << e;
   e = build_error_of(
       std::string(traction_case).replace(traction_case.find("traction = [0, 0, 2e6]"), 22, ""));
-  EXPECT_NE(e.find("expected force (N on each node) or traction (Pa on a face)"), std::string::npos)
+  EXPECT_NE(e.find("expected force (N on each node), traction (Pa on a surface), total (N over a "
+                   "surface) or acceleration (m/s^2 on each node's mass)"),
+            std::string::npos)
       << e;
 }
 

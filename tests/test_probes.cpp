@@ -2,6 +2,7 @@
 // elastic column pulled slowly: what each records follows from the imposed motion and from
 // uniaxial elasticity.
 #include "app/case_run.hpp"
+#include "csv_columns.hpp"
 
 #include <cmath>
 #include <filesystem>
@@ -131,22 +132,7 @@ std::map<std::string, std::vector<double>> run_column() {
   o.out_dir = (dir / "out").string();
   o.plots = false;
   EXPECT_EQ(run_command(path, o), 0);
-  std::ifstream in(dir / "out" / "probes.csv");
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  {
-    std::istringstream ls(line);
-    for (std::string x; std::getline(ls, x, ',');)
-      names.push_back(x);
-  }
-  std::map<std::string, std::vector<double>> columns;
-  while (std::getline(in, line)) {
-    std::istringstream ls(line);
-    std::size_t i = 0;
-    for (std::string x; std::getline(ls, x, ','); ++i)
-      columns[names.at(i)].push_back(std::stod(x));
-  }
+  auto columns = testing::csv_columns(dir / "out" / "probes.csv");
   fs::remove_all(dir);
   return columns;
 }
