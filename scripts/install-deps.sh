@@ -8,6 +8,7 @@ PKGS=(
   nlohmann-json3-dev               # summary.json read and updated by the analyses
   libboost-math-dev                # Student t quantiles (confidence interval of Paris' m)
   libfftw3-dev pkgconf             # correlated random fields (FFT); pkg-config finds FFTW
+  zlib1g-dev                       # compressed VTU snapshots (VTK's zlib block format)
   libeigen3-dev                    # ldem modes: sparse matrices and their factorisation
   libspectra-dev                   # ldem modes: Lanczos shift-invert eigen-solver (lowest modes)
   python3-matplotlib python3-numpy # PNG plots of a run

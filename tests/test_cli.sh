@@ -304,6 +304,38 @@ sed 's/^energy_every = 50/energy_every = 50\nvtu_arrays = ["displacement", "dmg"
 rc=$?
 [ $rc -eq 2 ] && [ ! -e "$T/arrays_bad" ] && grep -q 'arrays_bad.toml:[0-9]*: output.vtu_arrays: expected names among "displacement", "velocity", "damage", "state", "axial_force", "strain", "E", "Gf", "e_p", "e_r" (this law.s), got "dmg"' "$T/stderr" && ok || bad "vtu_arrays with a bad name: rc $rc, $(cat "$T/stderr")"
 
+# Compressed snapshots (output.vtu_compression = "zlib"): VTK reads them, every array the same
+# numbers as the uncompressed run's, and they are smaller.
+sed 's/^energy_every = 50/energy_every = 50\nvtu_compression = "zlib"/' "$T/long.toml" >"$T/zlib.toml"
+if "$LDEM" run "$T/zlib.toml" --out "$T/zlib" --no-plot >/dev/null 2>"$T/stderr" &&
+  /usr/bin/python3 "$SRC/tests/check_outputs.py" "$T/zlib" >/dev/null &&
+  /usr/bin/python3 - "$T/long" "$T/zlib" <<'PY'
+import sys, os, vtk
+from vtk.util.numpy_support import vtk_to_numpy
+import numpy as np
+a_dir, b_dir = sys.argv[1], sys.argv[2]
+names = sorted(f for f in os.listdir(a_dir) if f.endswith(".vtu"))
+assert names == sorted(f for f in os.listdir(b_dir) if f.endswith(".vtu"))
+for name in names:
+    out = []
+    for d in (a_dir, b_dir):
+        r = vtk.vtkXMLUnstructuredGridReader()
+        r.SetFileName(os.path.join(d, name))
+        r.Update()
+        out.append(r.GetOutput())
+    a, b = out
+    for data in ("GetPointData", "GetCellData"):
+        A, B = getattr(a, data)(), getattr(b, data)()
+        assert A.GetNumberOfArrays() == B.GetNumberOfArrays(), name
+        for i in range(A.GetNumberOfArrays()):
+            n = A.GetArrayName(i)
+            assert np.array_equal(vtk_to_numpy(A.GetArray(n)), vtk_to_numpy(B.GetArray(n))), (name, n)
+    assert np.array_equal(vtk_to_numpy(a.GetCells().GetConnectivityArray()),
+                          vtk_to_numpy(b.GetCells().GetConnectivityArray())), name
+    assert os.path.getsize(os.path.join(b_dir, name)) < os.path.getsize(os.path.join(a_dir, name)) / 2, name
+PY
+then ok; else bad "compressed snapshots: $(cat "$T/stderr")"; fi
+
 # crack.png of a 3-D body: the tutorial plate made 12 x 8 x 10 modules, notched through its
 # 8-module depth, cracks across z in an x-y plane: the default shows that crack face on (x-y,
 # coloured by z) beside a slice through the middle of the thinnest direction (y = 20 mm);

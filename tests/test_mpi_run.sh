@@ -168,6 +168,14 @@ rc=$?
 if [ $rc -ne 2 ] || [ "$(grep -c "cannot be shared by 2 processes" "$T/err")" -ne 1 ] || [ -e "$T/thin" ]; then
   bad "a body thinner than the processes: rc $rc, $(cat "$T/err")"
 fi
+# Compressed snapshots are written by one process only: refused under mpirun, with the line.
+sed 's/^energy_every = 50/energy_every = 50\nvtu_compression = "zlib"/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/zlib.toml"
+mpi 2 run "$T/zlib.toml" --out "$T/zlib" --no-plot >/dev/null 2>"$T/err"
+rc=$?
+if [ $rc -ne 2 ] || [ "$(grep -c "zlib.toml:[0-9]*: output.vtu_compression: \"zlib\" snapshots are written by one process only" "$T/err")" -ne 1 ] ||
+  [ -e "$T/zlib" ]; then
+  bad "compressed snapshots under mpirun: rc $rc, $(cat "$T/err")"
+fi
 mpi 2 run "$SRC/cases/tutorial/notched_plate.toml" --out "$T/grid" --no-plot --process-grid 2 1 \
   >/dev/null 2>"$T/err"
 rc=$?

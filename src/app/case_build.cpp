@@ -876,6 +876,8 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
                           {"vtu_every", static_cast<std::int64_t>(s.output.vtu_every)},
                           {"vtu", s.output.vtu},
                           {"plots", s.output.plots}});
+  if (s.output.vtu_zlib)
+    root["output"].as_table()->insert("vtu_compression", "zlib");
   if (!s.output.vtu_arrays.empty()) {
     toml::array arrays;
     for (const std::string& a : s.output.vtu_arrays)

@@ -24,7 +24,8 @@ public:
   int max_over_processes(int value) const override { return value; } // the only process
   Vec3 displacement(index_t node) override { return c_.sim->displacement(node); }
   void prepare_snapshots() override {
-    vtu_ = std::make_unique<LatticeVtuWriter>(*c_.sim, c_.spec.output.vtu_arrays);
+    vtu_ = std::make_unique<LatticeVtuWriter>(*c_.sim, c_.spec.output.vtu_arrays,
+                                              c_.spec.output.vtu_zlib);
   }
   void write_snapshot(const std::string& path) override;
 

@@ -1003,6 +1003,7 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
       static_cast<std::uint64_t>(r.get_int(out, "output", "checkpoint_every", "output."));
   c.output.checkpoint_seconds = r.get_float(out, "output", "checkpoint_seconds", "output.");
   c.output.end_checkpoint = r.get_bool(out, "output", "end_checkpoint", "output.");
+  c.output.vtu_zlib = r.get_string(out, "output", "vtu_compression", "output.") == "zlib";
   if (const toml::node* a = out.get("vtu_arrays")) {
     const toml::array* arr = a->as_array();
     if (!arr || arr->empty())

@@ -88,6 +88,7 @@ struct OutputSpec {
   bool end_checkpoint = true;         // a checkpoint of the last reported state at the end
   // The snapshots' optional arrays (vtu_array_names, io/output.hpp); empty: all of them.
   std::vector<std::string> vtu_arrays;
+  bool vtu_zlib = false; // snapshots zlib-compressed (output.vtu_compression = "zlib")
 };
 
 // What `ldem run` analyses after the run ([analysis]); lengths 0 mean the default (in L).

@@ -9,6 +9,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fmt/format.h>
+#include <omp.h>
+#include <zlib.h>
 
 namespace ldem {
 
@@ -198,16 +200,46 @@ std::vector<std::string> vtu_array_names(std::span<const StateArray> law_states)
   return names;
 }
 
+std::string zlib_blocks(const void* data, std::uint64_t bytes) {
+  constexpr std::uint64_t kBlock = 32768; // VTK's own block size
+  const std::uint64_t n = (bytes + kBlock - 1) / kBlock;
+  std::vector<std::string> blocks(n);
+  const auto* in = static_cast<const Bytef*>(data);
+  bool failed = false;
+#pragma omp parallel for schedule(dynamic) reduction(|| : failed)
+  for (std::int64_t k = 0; k < static_cast<std::int64_t>(n); ++k) {
+    const auto first = static_cast<std::uint64_t>(k) * kBlock;
+    const uLong length = static_cast<uLong>(std::min(kBlock, bytes - first));
+    uLongf stored = compressBound(length);
+    std::string& out = blocks[static_cast<std::size_t>(k)];
+    out.resize(stored);
+    failed = failed || compress2(reinterpret_cast<Bytef*>(out.data()), &stored, in + first, length,
+                                 Z_BEST_SPEED) != Z_OK;
+    out.resize(stored);
+  }
+  if (failed)
+    throw std::runtime_error("zlib could not compress a snapshot's array");
+  std::vector<std::uint64_t> head = {n, kBlock, bytes % kBlock};
+  for (const std::string& b : blocks)
+    head.push_back(b.size());
+  std::string s(reinterpret_cast<const char*>(head.data()), head.size() * sizeof(std::uint64_t));
+  for (const std::string& b : blocks)
+    s += b;
+  return s;
+}
+
 VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids,
-                     const std::vector<std::string>& arrays) {
+                     const std::vector<std::string>& arrays, const VtuStoredSize& compressed) {
   const bool fields = sim.table().per_bar();
   const auto chosen = [&](std::string_view name) {
     return arrays.empty() || std::find(arrays.begin(), arrays.end(), name) != arrays.end();
   };
   VtuLayout l;
-  std::string s = "<?xml version=\"1.0\"?>\n"
-                  "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
-                  "header_type=\"UInt64\">\n<UnstructuredGrid>\n";
+  std::string s = fmt::format(
+      "<?xml version=\"1.0\"?>\n"
+      "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
+      "header_type=\"UInt64\"{}>\n<UnstructuredGrid>\n",
+      compressed ? " compressor=\"vtkZLibDataCompressor\"" : "");
   s += fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", nn, nb);
   std::uint64_t offset = 0; // in the appended data
   auto tag = [&](VtuLayout::Array a, const char* type, const char* name, int components,
@@ -221,7 +253,7 @@ VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids,
     l.present[a] = true;
     l.at[a] = offset; // made a file position below, once the header's length is known
     l.bytes[a] = bytes;
-    offset += sizeof(std::uint64_t) + bytes;
+    offset += compressed ? compressed(a, bytes) : sizeof(std::uint64_t) + bytes;
   };
   const std::uint64_t fn = 4ull * nn, fb = 4ull * nb;
   s += "<PointData Vectors=\"displacement\">\n";
@@ -244,7 +276,9 @@ VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids,
                        states[a].name, offset);
       l.states.push_back(a);
       l.state_at.push_back(offset);
-      offset += sizeof(std::uint64_t) + fb;
+      offset += compressed
+                    ? compressed(VtuLayout::kArrays + static_cast<int>(l.states.size()) - 1, fb)
+                    : sizeof(std::uint64_t) + fb;
     }
   if (fields) {
     tag(VtuLayout::E, "Float32", "E", 1, fb);
@@ -287,8 +321,9 @@ void keep_present(std::vector<T>& v, const std::vector<index_t>& ranks, std::siz
 
 } // namespace
 
-LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim, const std::vector<std::string>& arrays)
-    : ranks_(sim.lattice()) {
+LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim, const std::vector<std::string>& arrays,
+                                   bool zlib)
+    : ranks_(sim.lattice()), zlib_(zlib), arrays_(arrays) {
   const Lattice& lat = sim.lattice();
   const index_t nn = lat.num_nodes(), nb = lat.num_bars();
   nn_ = nn;
@@ -335,7 +370,13 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim, const std::vector<std:
 
   // The per-snapshot arrays come first in the appended data; their sizes are fixed, so every
   // offset, and the whole XML header, is known now.
-  auto add_static = [&](const void* data, std::uint64_t bytes) {
+  auto add_static = [&](VtuLayout::Array a, const void* data, std::uint64_t bytes) {
+    if (zlib_) {
+      const std::string blob = zlib_blocks(data, bytes);
+      static_stored_[a] = blob.size();
+      static_block_.insert(static_block_.end(), blob.begin(), blob.end());
+      return;
+    }
     const auto* p = reinterpret_cast<const char*>(&bytes);
     static_block_.insert(static_block_.end(), p, p + sizeof bytes);
     const auto* q = static_cast<const char*>(data);
@@ -361,12 +402,12 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim, const std::vector<std:
         {VtuLayout::E, &E}, {VtuLayout::Gf, &Gf}, {VtuLayout::EP, &e_p}, {VtuLayout::ER, &e_r}};
     for (const auto& [a, v] : field)
       if (layout.present[a])
-        add_static(v->data(), fb);
+        add_static(a, v->data(), fb);
   }
-  add_static(points.data(), 3 * 4ull * wn);
-  add_static(conn.data(), 2 * fb);
-  add_static(offsets.data(), fb);
-  add_static(types.data(), wb);
+  add_static(VtuLayout::Points, points.data(), 3 * 4ull * wn);
+  add_static(VtuLayout::Connectivity, conn.data(), 2 * fb);
+  add_static(VtuLayout::Offsets, offsets.data(), fb);
+  add_static(VtuLayout::Types, types.data(), wb);
   header_ = layout.header;
   // Every buffer a snapshot fills, sized (and its pages touched) now, not at the first snapshot.
   disp_.resize(3 * std::size_t{nn});
@@ -428,14 +469,23 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
     keep_present(state_, ranks_.bar, 1);
     state_.resize(nb_);
   }
-  OutputFile out(path);
-  out.write(header_);
+  // Compressed: every array first (their sizes place the next ones), then the header.
+  std::optional<OutputFile> out;
+  if (!zlib_) {
+    out.emplace(path);
+    out->write(header_);
+  }
+  blobs_.clear();
   // (The arrays in the layout's order; those not chosen are left out.)
   auto block = [&](VtuLayout::Array a, const void* data, std::uint64_t bytes) {
     if (!present_[a])
       return;
-    out.write(reinterpret_cast<const char*>(&bytes), sizeof bytes);
-    out.write(static_cast<const char*>(data), bytes);
+    if (zlib_) {
+      blobs_.emplace_back(a, zlib_blocks(data, bytes));
+      return;
+    }
+    out->write(reinterpret_cast<const char*>(&bytes), sizeof bytes);
+    out->write(static_cast<const char*>(data), bytes);
   };
   block(VtuLayout::Displacement, disp_.data(), 3 * std::size_t{wn} * sizeof(float));
   block(VtuLayout::Velocity, vel_.data(), 3 * std::size_t{wn} * sizeof(float));
@@ -445,18 +495,35 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   block(VtuLayout::Force, force_f_.data(), std::size_t{wb} * sizeof(float));
   block(VtuLayout::Strain, strain_f_.data(), std::size_t{wb} * sizeof(float));
   block(VtuLayout::BarId, bar_id_.data(), bar_id_.size() * sizeof(std::int32_t));
+  int law_key = VtuLayout::kArrays; // (vtu_layout's key of the law's q-th array)
   for (std::size_t a : law_states_) {
     law_state_.clear();
     sim.append_bar_states(a, 0, nb_, law_state_);
     law_state_f_.assign(law_state_.begin(), law_state_.end());
     keep_present(law_state_f_, ranks_.bar, 1);
     const std::uint64_t bytes = law_state_f_.size() * sizeof(float);
-    out.write(reinterpret_cast<const char*>(&bytes), sizeof bytes);
-    out.write(reinterpret_cast<const char*>(law_state_f_.data()), bytes);
+    if (zlib_) {
+      blobs_.emplace_back(law_key++, zlib_blocks(law_state_f_.data(), bytes));
+      continue;
+    }
+    out->write(reinterpret_cast<const char*>(&bytes), sizeof bytes);
+    out->write(reinterpret_cast<const char*>(law_state_f_.data()), bytes);
   }
-  out.write(static_block_.data(), static_block_.size());
-  out.write(VtuLayout::trailer);
-  out.commit();
+  if (zlib_) {
+    const auto stored = [&](int key, std::uint64_t) -> std::uint64_t {
+      for (const auto& [k, blob] : blobs_)
+        if (k == key)
+          return blob.size();
+      return static_stored_[key];
+    };
+    out.emplace(path);
+    out->write(vtu_layout(wn, wb, sim, shaped, arrays_, stored).header);
+    for (const auto& blob : blobs_)
+      out->write(blob.second.data(), blob.second.size());
+  }
+  out->write(static_block_.data(), static_block_.size());
+  out->write(VtuLayout::trailer);
+  out->commit();
 }
 
 void write_lattice_vtu(const Simulation& sim, const std::string& path) {

@@ -5,6 +5,7 @@
 #include "solver/simulation.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -117,9 +118,19 @@ struct VtuLayout {
 std::vector<std::string> vtu_array_names(std::span<const StateArray> law_states);
 // The layout of a snapshot of `sim`'s body (`nodes` and `bars`: the whole body's present ones):
 // the arrays `arrays` names (empty: all of vtu_array_names), the fields only where the material
-// varies, and with `ids` (a shaped body) each node's and bar's number in the body.
+// varies, and with `ids` (a shaped body) each node's and bar's number in the body. With
+// `compressed`, the file is zlib-compressed (vtkZLibDataCompressor) and compressed(key, bytes)
+// gives the bytes an array of `bytes` takes in the appended data (its block header included);
+// key: its VtuLayout::Array, or kArrays + q for the q-th law state array written. The layout's
+// `at`, `bytes` and `size` are then those of the stored arrays, for this one snapshot.
+using VtuStoredSize = std::function<std::uint64_t(int key, std::uint64_t bytes)>;
 VtuLayout vtu_layout(index_t nodes, index_t bars, const Simulation& sim, bool ids = false,
-                     const std::vector<std::string>& arrays = {});
+                     const std::vector<std::string>& arrays = {},
+                     const VtuStoredSize& compressed = nullptr);
+// `bytes` of data as VTK's zlib-compressed appended data: the block header (UInt64: the number
+// of blocks of 32768 bytes, that size, the last block's size if partial, else 0, each block's
+// compressed size) and the blocks, each compressed on its own (zlib level 1), in parallel.
+std::string zlib_blocks(const void* data, std::uint64_t bytes);
 
 // A shaped body's modules as a NumPy .npy file (body.npy of a run folder): uint8, shape
 // (nx, ny, nz), indexed [i, j, k], 1 where the module is present (Fortran order: i fastest, the
@@ -140,8 +151,9 @@ struct PresentRanks {
 // snapshot only converts and writes the displacements, velocities and bar values.
 class LatticeVtuWriter {
 public:
-  // `arrays`: the optional arrays to write (vtu_array_names; empty: all).
-  explicit LatticeVtuWriter(const Simulation& sim, const std::vector<std::string>& arrays = {});
+  // `arrays`: the optional arrays to write (vtu_array_names; empty: all); `zlib`: compressed.
+  explicit LatticeVtuWriter(const Simulation& sim, const std::vector<std::string>& arrays = {},
+                            bool zlib = false);
   void write(const Simulation& sim, const std::string& path);
 
 private:
@@ -155,6 +167,13 @@ private:
   std::vector<double> damage_, force_, strain_;
   std::vector<std::size_t> law_states_; // the law's state arrays written (VtuLayout::states)
   bool present_[VtuLayout::kArrays] = {}; // the arrays written (VtuLayout::present)
+  // Compressed snapshots: the choice of arrays, and each static array's stored size (by
+  // VtuLayout::Array); the per-snapshot arrays compressed into `blobs_` (by key, as
+  // vtu_layout's).
+  bool zlib_ = false;
+  std::vector<std::string> arrays_;
+  std::uint64_t static_stored_[VtuLayout::kArrays] = {};
+  std::vector<std::pair<int, std::string>> blobs_;
   std::vector<double> law_state_;
   std::vector<float> law_state_f_;
 };
