@@ -33,7 +33,14 @@ sed -e 's/^e_p = 1.0e-4 .*/e_p = 1.0e-4\nlaw = "bilinear_fatigue"\n\n[fatigue]\n
   -e 's/^ramp = 2.0e-4/function = [{ type = "growing_sine", amplitude = 1.0, frequency = 1000.0, t_start = 0.0, tau = 1.0 }]/' \
   -e "s/^end = .*/end = ${JUMP_END:-0.035}/" -e 's/^energy_every = 50/energy_every = 100/' \
   "$SRC/cases/tutorial/notched_plate.toml" >"$T/jumping.toml"
-for c in tutorial graded fatigue jumping; do
+# And the tutorial plate under its weight at 1000 g (a body force on every node) and a total
+# force spread over its surface near a corner (the strip's nodes lie on several processes),
+# with a probe of each load.
+{ sed 's/^end = .*/end = 1.0e-3/' "$SRC/cases/tutorial/notched_plate.toml"
+  printf '\n[[node_set]]\nname = "everything"\nall = true\n\n[[node_set]]\nname = "strip"\nshape = { type = "box", min = [0.0, -1.0, 0.08], max = [0.06, 1.0, 0.1] }\nsurface = true\n'
+  printf '\n[[load]]\nname = "weight"\nset = "everything"\nacceleration = [0.0, 0.0, -1.0e4]\n\n[[load]]\nname = "push"\nset = "strip"\ntotal = [50.0, 0.0, -20.0]\nfunction = [{ type = "ramp", duration = 5.0e-4 }]\n'
+  printf '\n[[probe]]\nname = "weight"\nkind = "load"\nload = "weight"\n\n[[probe]]\nname = "push"\nkind = "load"\nload = "push"\n'; } >"$T/loaded.toml"
+for c in tutorial graded fatigue jumping loaded; do
   "$LDEM" run "$T/$c.toml" --out "$T/$c-1" --no-plot --threads 1 >/dev/null 2>"$T/err" ||
     bad "$c on one process: $(cat "$T/err")"
   for np in "$@"; do
