@@ -15,6 +15,7 @@
 #include <numeric>
 #include <string>
 #include <unistd.h>
+#include <utility>
 #include <vector>
 
 namespace fs = std::filesystem;
@@ -177,8 +178,13 @@ TEST(Loads, TotalIsSpreadByAreaAsATraction) {
 // A body force weighs each node by the simulation's own lumped mass, with a density field as
 // without: the forces add up to rho V a.
 TEST(Loads, AccelerationWeighsEachNodeByItsLumpedMass) {
-  for (const char* rho : {"rho = 2400",
-                          "rho = { type = \"linear\", axis = \"z\", values = [1200.0, 2400.0] }"}) {
+  // The density as the case gives it, and its mean over the body: 2400 kg/m^3, or a linear
+  // field from 1200 to 2400, whose modules take it at their centres (linear: the mean, 1800,
+  // is exact).
+  const std::pair<const char*, double> densities[] = {
+      {"rho = 2400", 2400.0},
+      {"rho = { type = \"linear\", axis = \"z\", values = [1200.0, 2400.0] }", 1800.0}};
+  for (const auto& [rho, rho_mean] : densities) {
     std::string text = with_load("set = \"all\"\nacceleration = [0, 0, -9.81]");
     text.replace(text.find("rho = 2400"), 10, rho);
     const BuiltCase c = built(text);
@@ -189,9 +195,8 @@ TEST(Loads, AccelerationWeighsEachNodeByItsLumpedMass) {
       EXPECT_EQ(l.weight[q], c.sim->mass(l.set.nodes[q])) << rho << ", node " << q;
       mass += c.sim->mass(l.set.nodes[q]);
     }
-    // rho V: 2400 kg/m^3 over 0.04 x 0.04 x 0.06 m; the linear field's mean is 1800, its
-    // modules' densities being taken at their centres (linear: the mean is exact).
-    const double V = 0.04 * 0.04 * 0.06, rho_mean = std::string(rho).size() > 10 ? 1800.0 : 2400.0;
+    // rho V over the block of 0.04 x 0.04 x 0.06 m.
+    const double V = 0.04 * 0.04 * 0.06;
     EXPECT_NEAR(mass, rho_mean * V, 1e-12 * rho_mean * V) << rho;
     EXPECT_NEAR(total_load(c).z, -9.81 * rho_mean * V, 1e-12 * 9.81 * rho_mean * V) << rho;
     EXPECT_NEAR(load_total_force(c, 0, 0.0), 9.81 * rho_mean * V, 1e-12 * 9.81 * rho_mean * V);
