@@ -367,8 +367,27 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     cond.plane_strain_axis = s.plane_strain_axis;
     for (const FixedSpec& f : s.fixed)
       cond.fixed.push_back({set_named(c.sets, f.set), f.dofs});
-    for (const VelocitySpec& v : s.velocities)
+    for (const VelocitySpec& v : s.velocities) {
       cond.velocities.push_back({set_named(c.sets, v.set), v.dofs, v.value, v.scale});
+      if (v.control) {
+        // The controller's response time by default: 20 times the time a bar wave takes to
+        // cross the box's largest extent (docs/model.md, "Probe-controlled loading").
+        const double extent =
+            static_cast<double>(std::max({s.nx, s.ny, s.nz})) * s.L,
+                     wave = std::sqrt(s.material.E / s.material.rho);
+        BuiltCase::Control k;
+        k.probe = static_cast<std::size_t>(
+            std::find_if(s.probes.begin(), s.probes.end(),
+                         [&](const ProbeSpec& p) { return p.name == v.control->probe; }) -
+            s.probes.begin());
+        k.rate = v.control->rate;
+        k.response_time =
+            v.control->response_time > 0.0 ? v.control->response_time : 20.0 * extent / wave;
+        k.speed = std::sqrt(v.value.x * v.value.x + v.value.y * v.value.y + v.value.z * v.value.z);
+        cond.velocities.back().control = static_cast<int>(c.controls.size());
+        c.controls.push_back(k);
+      }
+    }
     for (std::size_t i = 0; i < s.loads.size(); ++i) {
       const LoadSpec& l = s.loads[i];
       const NodeSet& set = set_named(c.sets, l.set);
@@ -454,7 +473,14 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     if (with_simulation)
       fields = case_fields(s, lat, nullptr, nullptr);
     if (s.material.fatigue && s.material.fatigue->jump) {
-      // The cycles a jump skips: those of the case's growing_sine terms, one frequency.
+      // The cycles a jump skips: those of the case's growing_sine terms, one frequency. A
+      // controlled velocity follows the body's response, which a jump does not compute.
+      for (const VelocitySpec& v : s.velocities)
+        if (v.control)
+          throw InputError(fmt::format(
+              "fatigue.jump: expected loads and velocities given by time functions (a jump "
+              "skips their cycles), got a velocity on \"{}\" controlled by probe \"{}\"",
+              v.set, v.control->probe));
       std::vector<const TimeFunction*> functions;
       for (const LoadSpec& l : s.loads)
         functions.push_back(&l.scale);
@@ -768,11 +794,21 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
   toml::array fixed, vel, loads, cracks, probes;
   for (const FixedSpec& f : s.fixed)
     fixed.push_back(toml::table{{"set", f.set}, {"dofs", dofs_text(f.dofs)}});
-  for (const VelocitySpec& v : s.velocities)
-    vel.push_back(toml::table{{"set", v.set},
-                              {"dofs", dofs_text(v.dofs)},
-                              {"value", vec(v.value)},
-                              {"function", function(v.scale)}});
+  std::size_t next_control = 0;
+  for (const VelocitySpec& v : s.velocities) {
+    toml::table t{{"set", v.set}, {"dofs", dofs_text(v.dofs)}, {"value", vec(v.value)}};
+    if (v.control) {
+      // The controller as it runs: its response time resolved.
+      toml::table control{{"probe", v.control->probe},
+                          {"rate", v.control->rate},
+                          {"response_time", c.controls[next_control++].response_time}};
+      control.is_inline(true);
+      t.insert("control", std::move(control));
+    } else {
+      t.insert("function", function(v.scale));
+    }
+    vel.push_back(std::move(t));
+  }
   for (std::size_t i = 0; i < s.loads.size(); ++i) {
     const LoadSpec& l = s.loads[i];
     static const char* const kinds[] = {"force", "traction", "total", "acceleration"};

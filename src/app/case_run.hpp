@@ -38,6 +38,14 @@ struct BuiltCase {
     double scale = 1.0;
   };
   std::vector<Gauge> probe_gauges;
+  // The controlled velocities (velocity.control), in the order of ImposedVelocity::control:
+  // the gauge probe's index in probes, its target's rate, the response time [s] and the set's
+  // top speed |value| [m/s]. RunBody::step sets their factors before each step.
+  struct Control {
+    std::size_t probe = 0;
+    double rate = 0.0, response_time = 0.0, speed = 0.0;
+  };
+  std::vector<Control> controls;
   std::vector<std::string> warnings;
   // [[geometry]]: modules removed as hinged pieces, and the pieces of the body.
   std::uint64_t hinged_modules = 0, pieces = 1;

@@ -50,6 +50,19 @@ std::vector<Event> RunBody::take_kept_events() {
   return events;
 }
 
+void RunBody::control_factors(std::uint64_t step, const std::vector<double>& gauges) {
+  // A proportional controller: the set's speed that would cancel the error in response_time
+  // if the gauge moved as the set does, at most the set's top speed either way. The target is
+  // taken at the step's end, where the velocity of the step brings the gauge.
+  const double t_next = static_cast<double>(step + 1) * dt_;
+  controls_.resize(c_.controls.size());
+  for (std::size_t k = 0; k < c_.controls.size(); ++k) {
+    const BuiltCase::Control& ctl = c_.controls[k];
+    const double error = ctl.rate * t_next - gauges[k];
+    controls_[k] = std::clamp(error / (ctl.response_time * ctl.speed), -1.0, 1.0);
+  }
+}
+
 double RunBody::load_probe(const ProbeSpec& p, double t) const {
   for (std::size_t i = 0; i < c_.spec.loads.size(); ++i)
     if (c_.spec.loads[i].name == p.load)

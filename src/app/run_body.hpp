@@ -60,7 +60,10 @@ public:
 
   // One step (and, distributed, the exchange of ghost nodes). With `report`, the probes at
   // the step's start and the energies; distributed, these and the step's events come to the
-  // first process in one gather.
+  // first process in one gather. A case with controlled velocities (BuiltCase::controls)
+  // first sets their factors from their gauges at the step's start (control_factors;
+  // distributed: the gauges' terms gathered and the factors sent back, the same on every
+  // process whatever their number).
   virtual void step(bool report) = 0;
   // The whole body's energies of the last report step (first process).
   const EnergyReport& last_report() const { return report_; }
@@ -128,6 +131,10 @@ protected:
   std::vector<Event> take_kept_events();
   // A probe's value that needs no simulation: the total of a load at time t.
   double load_probe(const ProbeSpec& p, double t) const;
+  // The factors of the controlled velocities for the step from t_n = step * dt, from their
+  // gauges' values at t_n: f = clamp((rate t_{n+1} - g_n) / (response_time speed), -1, 1)
+  // (docs/model.md, "Probe-controlled loading"). Into controls_.
+  void control_factors(std::uint64_t step, const std::vector<double>& gauges);
   // The reaction probe's term of one node: its bar forces and load along the component (the
   // reaction is minus their sum over the set).
   static double reaction_term(const Simulation& sim, index_t node, int component);
@@ -140,6 +147,7 @@ protected:
   std::vector<Event> events_; // gathered or kept by a checkpoint, not yet taken (first process)
   double initial_ = 0.0;      // the whole body's elastic + kinetic energy at t = 0
   std::vector<double> send_;  // gathers' and checkpoint pieces' buffer, kept from call to call
+  std::vector<double> gauges_, controls_; // the controlled gauges and their factors (step)
 
 private:
   // The body's progress as a checkpoint records it, without the ledger, report and events: its

@@ -42,6 +42,8 @@ private:
   // This process's part of a report: probe terms, energy rows and sums, events (each list
   // preceded by its length), and the first process's reading of all parts.
   void append_probe_terms(std::vector<double>& out) const;
+  // The controlled velocities' factors for this step, from their gauges (RunBody::step).
+  void control();
   void append_energy_rows(std::vector<double>& out);
   void append_events(std::vector<double>& out);
   void read_report(bool report);              // from received_
@@ -218,6 +220,8 @@ std::vector<double> DistributedBody::field_rows(index_t stride) {
 
 void DistributedBody::step(bool report) {
   const bool first_step = run_->sim().step_count() == 0; // energies are computed at step 0
+  if (!c_.controls.empty())
+    control();
   send_.clear();
   if (report)
     append_probe_terms(send_);
@@ -229,6 +233,46 @@ void DistributedBody::step(bool report) {
   append_events(send_);
   gather_on_first(send_, received_);
   read_report(report);
+}
+
+void DistributedBody::control() {
+  // Each process's terms of the controlled gauges' nodes it owns, in the gauges' order; the
+  // first process sums each end's terms in its nodes' order (as one process does), finds the
+  // factors and sends them to all.
+  const Lattice& whole = lattice();
+  const Subdomain& sub = run_->subdomain();
+  const Simulation& sim = run_->sim();
+  send_.clear();
+  for (const BuiltCase::Control& ctl : c_.controls) {
+    const BuiltCase::Gauge& g = c_.probe_gauges[ctl.probe];
+    for (const auto* nodes : {&g.from, &g.to})
+      for (index_t n : *nodes)
+        if (node_owner(sub, whole, n) == sub.rank)
+          send_.push_back(
+              probe_term(g, sim.displacement(run_->local_node(whole.node_address(n)))));
+  }
+  const std::size_t mine = send_.size();
+  send_.insert(send_.begin(), static_cast<double>(mine));
+  gather_on_first(send_, received_);
+  controls_.resize(c_.controls.size());
+  if (writes()) {
+    std::vector<const double*> terms;
+    for (std::size_t pos = 0; pos < received_.size();
+         pos += 1 + static_cast<std::size_t>(received_[pos]))
+      terms.push_back(received_.data() + pos + 1);
+    gauges_.resize(c_.controls.size());
+    for (std::size_t k = 0; k < c_.controls.size(); ++k) {
+      const BuiltCase::Gauge& g = c_.probe_gauges[c_.controls[k].probe];
+      double sums[2] = {0.0, 0.0};
+      for (int e = 0; e < 2; ++e)
+        for (index_t n : e == 0 ? g.from : g.to)
+          sums[e] += *terms[static_cast<std::size_t>(node_owner(sub, whole, n))]++;
+      gauges_[k] = gauge_value(g, sums[0], sums[1]);
+    }
+    control_factors(sim.step_count(), gauges_);
+  }
+  broadcast_from_first(controls_.data(), static_cast<int>(controls_.size()));
+  run_->sim().set_control_factors(controls_);
 }
 
 void DistributedBody::append_probe_terms(std::vector<double>& out) const {

@@ -46,6 +46,20 @@ private:
 };
 
 void SerialBody::step(bool report) {
+  if (!c_.controls.empty()) {
+    // The controlled gauges now, as the probes sum them.
+    gauges_.resize(c_.controls.size());
+    for (std::size_t k = 0; k < c_.controls.size(); ++k) {
+      const BuiltCase::Gauge& g = c_.probe_gauges[c_.controls[k].probe];
+      double sums[2] = {0.0, 0.0};
+      for (int e = 0; e < 2; ++e)
+        for (index_t n : e == 0 ? g.from : g.to)
+          sums[e] += probe_term(g, c_.sim->displacement(n));
+      gauges_[k] = gauge_value(g, sums[0], sums[1]);
+    }
+    control_factors(c_.sim->step_count(), gauges_);
+    c_.sim->set_control_factors(controls_);
+  }
   if (report)
     probes_ = probes();
   c_.sim->step(report);

@@ -110,6 +110,10 @@ const std::vector<KeyDecl>& case_keys() {
     {"velocity", "dofs", "string", "\"xyz\"", "", -kInf, kInf, false, false, "letters x, y, z", "Which DOF are imposed (the others stay free). A DOF of a node may be imposed by one [[velocity]] table only, and not one a [[fixed]] table or plane strain holds: contradicting conditions are refused."},
     {"velocity", "value", "[3 floats]", "required", "m/s", -kInf, kInf, false, false, "", "Velocity, scaled by the time function."},
     {"velocity", "ramp", "float", "-", "s", 0, kInf, true, false, "", "Shortcut for function = [{type = \"ramp\", value = 1, duration = ramp}]."},
+    {"velocity", "control", "table", "-", "", -kInf, kInf, false, false, "", "Loading controlled by a gauge probe (a constant CMOD rate): `control = { probe = \"cmod\", rate = 2.0e-3 }`. Before each step the set is driven at value * f, f = clamp((rate * t - probe) / (response_time * |value|), -1, 1): |value| is the fastest the controller may move the set, in value's direction (which must open the gauge when rate > 0); it backs off, and reverses, when the probe runs ahead (a snap-back). Replaces ramp and function. docs/model.md, \"Probe-controlled loading\"."},
+    {"control", "probe", "string", "required", "", -kInf, kInf, false, false, "", "The [[probe]] that is controlled: a displacement, opening or strain probe."},
+    {"control", "rate", "float", "required", "probe's unit / s", -kInf, kInf, false, false, "", "The probe's target is rate * t (m/s for a displacement or opening, 1/s for a strain); not 0."},
+    {"control", "response_time", "float", "-", "s", 0, kInf, true, false, "", "The time in which the controller would cancel the probe's error if the probe moved as the set does: the velocity is (rate * t - probe) / response_time along value. Shorter follows the target more closely (the probe lags it by rate * response_time / G, G = probe motion per set motion) but drives the specimen's own vibration when it is below its lowest period. Default: 20 times the time a bar wave sqrt(E / rho) takes to cross the body's largest extent."},
 
     {"load", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name (for probes)."},
     {"load", "set", "string", "required", "", -kInf, kInf, false, false, "", "Node set loaded."},
@@ -199,7 +203,8 @@ std::string case_format_markdown() {
       "`[[geometry]]`, `[[region]]`, `[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`,\n"
       "`[[precrack]]`, `[[probe]]`;\n"
       "a velocity or load may carry `function = [{ type = ..., ... }, ...]`, whose terms are\n"
-      "summed; a node set may be a shape, `shape = { type = ..., ... }`. Coordinates are in\n"
+      "summed, and a velocity `control = { probe = ..., rate = ... }` instead; a node set may\n"
+      "be a shape, `shape = { type = ..., ... }`. Coordinates are in\n"
       "metres from the box's corner at the origin; the box spans\n"
       "`[0, nx L] x [0, ny L] x [0, nz L]`.\n";
   const char* last = "";
@@ -213,6 +218,7 @@ std::string case_format_markdown() {
                         t == "field"      ? "material fields (`E = { type = ... }`)"
                         : t == "shape"    ? "shapes (`shape = { type = ... }`)"
                         : t == "function" ? "function terms (`function = [{...}]`)"
+                        : t == "control"  ? "velocity control (`control = {...}`)"
                         : array           ? "[[" + t + "]]"
                                           : "[" + t + "]");
       last = k.table;

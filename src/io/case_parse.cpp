@@ -914,6 +914,8 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     c.fixed.push_back({known_set(*fixed[i], w), r.dofs(*fixed[i], "fixed", w)});
   }
   const auto vel = array("velocity");
+  // The control tables read, checked against the probes once they are read.
+  std::vector<std::pair<const toml::table*, std::string>> controls;
   for (std::size_t i = 0; i < vel.size(); ++i) {
     const toml::table& t = *vel[i];
     const std::string w = fmt::format("velocity[{}].", i);
@@ -926,6 +928,35 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     if (ramp && t.contains("function"))
       r.fail(t.get("ramp"), w + "ramp", "expected ramp or function, not both");
     v.scale = ramp ? TimeFunction({LinearRamp{1.0, *ramp}}) : r.function(t, w);
+    if (const toml::node* cn = t.get("control")) {
+      const toml::table* ct = cn->as_table();
+      const std::string cw = w + "control.";
+      if (!ct)
+        r.fail(cn, w + "control",
+               fmt::format("expected a table {{ probe = \"<gauge probe>\", rate = ... }}, got {}",
+                           r.describe(*cn)));
+      r.check_known(*ct, "control", cw);
+      for (const char* k : {"ramp", "function"})
+        if (t.contains(k))
+          r.fail(t.get(k), w + k,
+                 "does not apply to a controlled velocity (its controller sets the factor on "
+                 "value; control.rate gives the probe's rate)");
+      const double speed = std::sqrt(v.value.x * v.value.x + v.value.y * v.value.y +
+                                     v.value.z * v.value.z);
+      if (!(speed > 0.0))
+        r.fail(t.get("value"), w + "value",
+               "expected a velocity that is not zero for a controlled velocity (its direction "
+               "and the fastest the controller may drive the set), got [0, 0, 0]");
+      ControlSpec cs;
+      cs.probe = r.get_string(*ct, "control", "probe", cw);
+      cs.rate = r.get_float(*ct, "control", "rate", cw);
+      if (cs.rate == 0.0)
+        r.fail(ct->get("rate"), cw + "rate",
+               "expected a rate that is not 0 (the probe's target is rate * t)");
+      cs.response_time = r.opt_float(*ct, "control", "response_time", cw).value_or(0.0);
+      v.control = cs;
+      controls.push_back({ct, cw});
+    }
     c.velocities.push_back(v);
   }
   const auto loads = array("load");
@@ -1159,6 +1190,24 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
       p.load = *l;
     }
     c.probes.push_back(p);
+  }
+  // A controlled velocity's probe: a gauge (its value starts at 0, as the target rate * t does).
+  std::size_t next_control = 0;
+  for (VelocitySpec& v : c.velocities) {
+    if (!v.control)
+      continue;
+    const auto& [ct, cw] = controls[next_control++];
+    const auto p = std::find_if(c.probes.begin(), c.probes.end(),
+                                [&](const ProbeSpec& q) { return q.name == v.control->probe; });
+    if (p == c.probes.end())
+      r.fail(ct->get("probe"), cw + "probe",
+             fmt::format("expected the name of a [[probe]], got \"{}\"", v.control->probe));
+    if (p->kind != ProbeSpec::Kind::Displacement && p->kind != ProbeSpec::Kind::Opening &&
+        p->kind != ProbeSpec::Kind::Strain)
+      r.fail(ct->get("probe"), cw + "probe",
+             fmt::format("expected a displacement, opening or strain probe (a gauge), got \"{}\", "
+                         "a probe of a force",
+                         v.control->probe));
   }
   return c;
 }

@@ -41,11 +41,21 @@ struct FixedSpec {
   DofMask dofs = kDofAll;
 };
 
+// Loading controlled by a gauge probe ([[velocity]] control = {...}): the set moves at
+// value * f, f in [-1, 1] set before each step so that the probe follows rate * t
+// (docs/model.md, "Probe-controlled loading").
+struct ControlSpec {
+  std::string probe;          // a displacement, opening or strain probe
+  double rate = 0.0;          // the probe's rate [its unit / s]
+  double response_time = 0.0; // s (0: 20 times the time a bar wave takes to cross the body)
+};
+
 struct VelocitySpec {
   std::string set;
   DofMask dofs = kDofAll;
   Vec3 value;
   TimeFunction scale;
+  std::optional<ControlSpec> control;
 };
 
 struct LoadSpec {

@@ -284,7 +284,7 @@ Conditions subdomain_conditions(const Subdomain& sub, const Lattice& whole, cons
       out.fixed.push_back({std::move(set), f.dofs});
   for (const ImposedVelocity& v : c.velocities)
     if (NodeSet set = restrict_set(v.set); !set.nodes.empty())
-      out.velocities.push_back({std::move(set), v.dofs, v.velocity, v.scale});
+      out.velocities.push_back({std::move(set), v.dofs, v.velocity, v.scale, v.control});
   for (const NodalLoad& l : c.loads)
     if (NodeSet set = restrict_set(l.set); !set.nodes.empty()) {
       std::vector<double> weight;

@@ -149,7 +149,11 @@ void apply_velocities(SimulationCore& core, double t, bool report) {
   ExactSum work, work_half, damping, kinetic;
   for (std::size_t c = 0; c < core.cond.velocities.size(); ++c) {
     const ImposedVelocity& iv = core.cond.velocities[c];
-    const double s = iv.scale(t + 0.5 * dt);
+    const double s =
+        iv.control < 0 ? iv.scale(t + 0.5 * dt)
+                       : (static_cast<std::size_t>(iv.control) < core.bc.control_factors.size()
+                              ? core.bc.control_factors[static_cast<std::size_t>(iv.control)]
+                              : 0.0);
     const double target[3] = {s * iv.velocity.x, s * iv.velocity.y, s * iv.velocity.z};
     for (std::size_t q = 0; q < iv.set.nodes.size(); ++q) {
       const std::size_t p = core.bc.velocity_slots[c][q];

@@ -49,6 +49,8 @@ struct Boundary {
   ExactSum work, work_half, damping, kinetic;
   // The time functions' values the loads were last applied with (apply_loads), empty before.
   std::vector<double> load_scales;
+  // The factors of the controlled velocities (Simulation::set_control_factors).
+  std::vector<double> control_factors;
 };
 
 struct SimulationCore {

@@ -272,6 +272,10 @@ double Simulation::motion_bound(index_t node) const {
   return core_->node_row_motion[core_->node_row_of(node)];
 }
 
+void Simulation::set_control_factors(std::span<const double> factors) {
+  core_->bc.control_factors.assign(factors.begin(), factors.end());
+}
+
 void Simulation::set_velocity(const std::function<Vec3(Vec3)>& v_of_X) {
   for (index_t n = 0; n < core_->lat.num_nodes(); ++n) {
     const Vec3 v = v_of_X(core_->lat.position(n));

@@ -42,12 +42,14 @@ struct FixedDofs {
   DofMask dofs = kDofAll;
 };
 
-// v = velocity * scale(t) on the chosen DOF of every node of the set.
+// v = velocity * scale(t) on the chosen DOF of every node of the set; or, for a controlled
+// velocity (control >= 0), velocity * the factor set_control_factors() last gave it.
 struct ImposedVelocity {
   NodeSet set;
   DofMask dofs = kDofAll;
   Vec3 velocity;
   TimeFunction scale;
+  int control = -1;
 };
 
 // F = force * weight[i] * scale(t) on node set.nodes[i]; no weights: 1 on every node (a
@@ -170,6 +172,11 @@ public:
   // The masses and held DOF of every node (what the stable step is computed from).
   std::vector<double> masses() const;
   std::vector<DofMask> held_dofs() const;
+
+  // The factors of the controlled velocities (ImposedVelocity::control indexes them) for the
+  // next steps: a controller outside the step sets them before each step (app/run_body.hpp).
+  // Before the first call they are 0.
+  void set_control_factors(std::span<const double> factors);
 
   // Initial velocities (before the first step), e.g. a ramp; taken as v_{-1/2}.
   void set_velocity(const std::function<Vec3(Vec3 X)>& v_of_X);
