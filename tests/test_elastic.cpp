@@ -1,5 +1,6 @@
 // Elastic physics of the lattice and of the integrator.
 #include "helpers.hpp"
+#include "io/output.hpp"
 #include "util/error.hpp"
 
 #include <algorithm>
@@ -83,6 +84,51 @@ TEST(Elastic, AffineStrainGivesIsotropicStressInTheInterior) {
         EXPECT_NEAR(sigma[p][q], expected, 0.01 * smax) << "sigma_" << p << q;
       }
   }
+}
+
+// The snapshots' stress at the nodes (node_stresses) under the affine field of the test above:
+// at the nodes whose modules are all interior (the corner (2, 2, 2) of the 4 x 4 x 4 box, whose
+// 8 modules are those with indices 1 and 2, and those modules' centres) it is the isotropic
+// solid's, lambda tr(eps) I + 2 mu eps with lambda = mu = 0.4 E. What is left: geometric
+// nonlinearity, O(eps) = 2e-6 relative.
+TEST(Elastic, NodeStressesAreTheIsotropicStressOfAnAffineStrain) {
+  const double L = 0.01, E = 30e9;
+  MaterialSpec m = unit_material();
+  m.E = E;
+  m.Gf = 1e6;
+  m.e_p = 1e-2;
+  Simulation sim = make_sim(4, 4, 4, L, m);
+  const Lattice& lat = sim.lattice();
+  const double eps[3][3] = {
+      {2e-6, 0.7e-6, -0.4e-6}, {0.7e-6, -1e-6, 0.9e-6}, {-0.4e-6, 0.9e-6, 1.5e-6}};
+  std::vector<Vec3> u(lat.num_nodes());
+  for (index_t n = 0; n < lat.num_nodes(); ++n) {
+    const Vec3 X = lat.position(n);
+    u[n] = {eps[0][0] * X.x + eps[0][1] * X.y + eps[0][2] * X.z,
+            eps[1][0] * X.x + eps[1][1] * X.y + eps[1][2] * X.z,
+            eps[2][0] * X.x + eps[2][1] * X.y + eps[2][2] * X.z};
+    sim.set_displacement(n, u[n]);
+  }
+  std::vector<std::uint8_t> state;
+  std::vector<double> damage, force, stress;
+  sim.bar_snapshot(state, damage, force);
+  node_stresses(lat, u, force, stress);
+  const double mu = 0.4 * E, lambda = 0.4 * E, tr = eps[0][0] + eps[1][1] + eps[2][2];
+  // VTK's order of a symmetric tensor: xx, yy, zz, xy, yz, xz.
+  const int p_of[6] = {0, 1, 2, 0, 1, 0}, q_of[6] = {0, 1, 2, 1, 2, 2};
+  double smax = 0.0;
+  for (int c = 0; c < 6; ++c)
+    smax = std::max(smax, std::abs(lambda * tr * (c < 3) + 2.0 * mu * eps[p_of[c]][q_of[c]]));
+  std::vector<index_t> nodes = {lat.corner(2, 2, 2)};
+  for (index_t k = 1; k <= 2; ++k)
+    for (index_t j = 1; j <= 2; ++j)
+      for (index_t i = 1; i <= 2; ++i)
+        nodes.push_back(lat.centre(i, j, k));
+  for (index_t n : nodes)
+    for (int c = 0; c < 6; ++c)
+      EXPECT_NEAR(stress[6 * std::size_t{n} + c],
+                  lambda * tr * (c < 3) + 2.0 * mu * eps[p_of[c]][q_of[c]], 1e-5 * smax)
+          << "node " << n << ", component " << c;
 }
 
 // A long prism 1 x 1 x N with the lateral DOF fixed is in uniaxial strain, so long waves

@@ -190,6 +190,14 @@ if [ $rc -ne 2 ] || [ "$(grep -c "zlib.toml:[0-9]*: output.vtu_compression: \"zl
   [ -e "$T/zlib" ]; then
   bad "compressed snapshots under mpirun: rc $rc, $(cat "$T/err")"
 fi
+# So is the stress at the nodes.
+sed 's/^energy_every = 50/energy_every = 50\nvtu_arrays = ["damage", "stress"]/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/stress.toml"
+mpi 2 run "$T/stress.toml" --out "$T/stress" --no-plot >/dev/null 2>"$T/err"
+rc=$?
+if [ $rc -ne 2 ] || [ "$(grep -c "stress.toml:[0-9]*: output.vtu_arrays: \"stress\" is written by one process only" "$T/err")" -ne 1 ] ||
+  [ -e "$T/stress" ]; then
+  bad "the stress at the nodes under mpirun: rc $rc, $(cat "$T/err")"
+fi
 mpi 2 run "$SRC/cases/tutorial/notched_plate.toml" --out "$T/grid" --no-plot --process-grid 2 1 \
   >/dev/null 2>"$T/err"
 rc=$?

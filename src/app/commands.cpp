@@ -196,6 +196,13 @@ void check_distributable(const BuiltCase& c, const std::string& path) {
                              "output.vtu_compression: \"zlib\" snapshots are written by one "
                              "process only for now; run without mpirun, or set "
                              "vtu_compression = \"none\""));
+  const auto& arrays = c.spec.output.vtu_arrays;
+  if (process_count() > 1 && c.spec.output.vtu &&
+      std::find(arrays.begin(), arrays.end(), "stress") != arrays.end())
+    throw InputError(located(c.spec, path,
+                             "output.vtu_arrays: \"stress\" is written by one process only for "
+                             "now (a node's stress needs every module around it); run without "
+                             "mpirun, or leave \"stress\" out"));
 }
 
 // The body of a run: the case's Simulation, or with several processes a subdomain on each (the

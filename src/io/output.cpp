@@ -190,8 +190,8 @@ PresentRanks::PresentRanks(const Lattice& lat) {
 }
 
 std::vector<std::string> vtu_array_names(std::span<const StateArray> law_states) {
-  std::vector<std::string> names = {"displacement", "velocity", "damage", "state", "axial_force",
-                                    "strain"};
+  std::vector<std::string> names = {"displacement", "velocity", "stress", "damage",
+                                    "state",        "axial_force", "strain"};
   for (const StateArray& a : law_states)
     if (a.in_snapshots)
       names.emplace_back(a.name);
@@ -259,6 +259,9 @@ VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids,
   s += "<PointData Vectors=\"displacement\">\n";
   tag(VtuLayout::Displacement, "Float32", "displacement", 3, 3 * fn);
   tag(VtuLayout::Velocity, "Float32", "velocity", 3, 3 * fn);
+  // (The stress only when named: it is computed from every bar at each snapshot.)
+  if (std::find(arrays.begin(), arrays.end(), "stress") != arrays.end())
+    tag(VtuLayout::Stress, "Float32", "stress", 6, 6 * fn);
   if (ids)
     tag(VtuLayout::NodeId, "Int32", "node", 1, fn);
   s += "</PointData>\n<CellData Scalars=\"damage\">\n";
@@ -320,6 +323,92 @@ void keep_present(std::vector<T>& v, const std::vector<index_t>& ranks, std::siz
 }
 
 } // namespace
+
+void node_stresses(const Lattice& lat, const std::vector<Vec3>& u, const std::vector<double>& force,
+                   std::vector<double>& out) {
+  const index_t nx = lat.nx(), ny = lat.ny(), nz = lat.nz();
+  const double inv_volume = 1.0 / (lat.L() * lat.L() * lat.L());
+  // Each present module's stress, summed over its bars in a fixed order (one writer each).
+  std::vector<double> module(6 * lat.num_modules(), 0.0);
+  const auto add_bar = [&](index_t b, double w, double* s) {
+    const double F = force[b];
+    if (F == 0.0)
+      return;
+    const auto [a, c] = lat.bar_nodes(b);
+    const Vec3 xa = lat.position(a), xc = lat.position(c);
+    const double d[3] = {xc.x - xa.x + u[c].x - u[a].x, xc.y - xa.y + u[c].y - u[a].y,
+                         xc.z - xa.z + u[c].z - u[a].z};
+    // F l n n^T = (F / l) d d^T
+    const double k = w * F / std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    s[0] += k * d[0] * d[0];
+    s[1] += k * d[1] * d[1];
+    s[2] += k * d[2] * d[2];
+    s[3] += k * d[0] * d[1];
+    s[4] += k * d[1] * d[2];
+    s[5] += k * d[0] * d[2];
+  };
+  const auto modules = static_cast<std::int64_t>(lat.num_modules());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t m = 0; m < modules; ++m) {
+    const auto i = static_cast<index_t>(m % nx), j = static_cast<index_t>((m / nx) % ny),
+               k = static_cast<index_t>(m / (std::int64_t{nx} * ny));
+    if (!lat.module_present(i, j, k))
+      continue;
+    double* s = &module[6 * static_cast<std::size_t>(m)];
+    // The 12 edges, each shared by the present modules that have it (4 area_factor of them).
+    for (index_t p = 0; p < 2; ++p)
+      for (index_t q = 0; q < 2; ++q)
+        for (const index_t b : {lat.bar(Family::EdgeX, i, j + p, k + q),
+                                lat.bar(Family::EdgeY, i + p, j, k + q),
+                                lat.bar(Family::EdgeZ, i + p, j + q, k)})
+          add_bar(b, 0.25 / lat.area_factor(b), s);
+    // The centre-centre bars to the present neighbours, half each; the 8 diagonals, whole.
+    const index_t at[3] = {i, j, k}, n[3] = {nx, ny, nz};
+    for (int axis = 0; axis < 3; ++axis) {
+      const auto f = static_cast<Family>(static_cast<int>(Family::CentreX) + axis);
+      for (const int side : {-1, 0}) {
+        if ((side < 0 && at[axis] == 0) || (side == 0 && at[axis] + 1 >= n[axis]))
+          continue;
+        index_t c[3] = {i, j, k};
+        c[axis] = at[axis] + static_cast<index_t>(side); // (index_t wraps -1 and adds it back)
+        const index_t b = lat.bar(f, c[0], c[1], c[2]);
+        if (lat.bar_present(b))
+          add_bar(b, 0.5, s);
+      }
+    }
+    for (int f = static_cast<int>(Family::Diag0); f <= static_cast<int>(Family::Diag7); ++f)
+      add_bar(lat.bar(static_cast<Family>(f), i, j, k), 1.0, s);
+    for (int e = 0; e < 6; ++e)
+      s[e] *= inv_volume;
+  }
+  // A node's stress: the mean over the present modules that have it.
+  out.assign(6 * std::size_t{lat.num_nodes()}, 0.0);
+  const auto corners = static_cast<std::int64_t>(lat.num_corners());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t q = 0; q < corners; ++q) {
+    const auto i = static_cast<index_t>(q % (nx + 1)),
+               j = static_cast<index_t>((q / (nx + 1)) % (ny + 1)),
+               k = static_cast<index_t>(q / (std::int64_t{nx + 1} * (ny + 1)));
+    double sum[6] = {0, 0, 0, 0, 0, 0};
+    int count = 0;
+    for (index_t c = 0; c < 2; ++c)
+      for (index_t b = 0; b < 2; ++b)
+        for (index_t a = 0; a < 2; ++a) {
+          if (i + a == 0 || j + b == 0 || k + c == 0 || i + a > nx || j + b > ny || k + c > nz)
+            continue;
+          const index_t mi = i + a - 1, mj = j + b - 1, mk = k + c - 1;
+          if (!lat.module_present(mi, mj, mk))
+            continue;
+          const double* s = &module[6 * (mi + std::size_t{nx} * (mj + std::size_t{ny} * mk))];
+          for (int e = 0; e < 6; ++e)
+            sum[e] += s[e];
+          ++count;
+        }
+    for (int e = 0; count > 0 && e < 6; ++e)
+      out[6 * static_cast<std::size_t>(q) + e] = sum[e] / count;
+  }
+  std::copy(module.begin(), module.end(), out.begin() + 6 * static_cast<std::ptrdiff_t>(corners));
+}
 
 LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim, const std::vector<std::string>& arrays,
                                    bool zlib)
@@ -419,6 +508,11 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim, const std::vector<std:
   damage_.resize(nb);
   force_.resize(nb);
   strain_.resize(nb);
+  if (present_[VtuLayout::Stress]) {
+    u_all_.resize(nn);
+    stress_.resize(6 * std::size_t{nn});
+    stress_f_.resize(6 * std::size_t{nn});
+  }
 }
 
 void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
@@ -440,10 +534,16 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
         vel_[o] = static_cast<float>(v[q].x);
         vel_[o + 1] = static_cast<float>(v[q].y);
         vel_[o + 2] = static_cast<float>(v[q].z);
+        if (!u_all_.empty())
+          u_all_[first + q] = u[q];
       }
     }
   }
   sim.bar_snapshot(state_, damage_, force_, &strain_);
+  if (present_[VtuLayout::Stress]) {
+    node_stresses(sim.lattice(), u_all_, force_, stress_);
+    stress_f_.assign(stress_.begin(), stress_.end());
+  }
   const auto nb = static_cast<std::ptrdiff_t>(nb_);
 #pragma omp parallel for schedule(static)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
@@ -462,6 +562,8 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
       keep_present(*v, ranks_.node, 3);
       v->resize(3 * std::size_t{nn_});
     }
+    if (present_[VtuLayout::Stress])
+      keep_present(stress_f_, ranks_.node, 6);
     for (std::vector<float>* v : {&damage_f_, &force_f_, &strain_f_}) {
       keep_present(*v, ranks_.bar, 1);
       v->resize(nb_);
@@ -489,6 +591,7 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   };
   block(VtuLayout::Displacement, disp_.data(), 3 * std::size_t{wn} * sizeof(float));
   block(VtuLayout::Velocity, vel_.data(), 3 * std::size_t{wn} * sizeof(float));
+  block(VtuLayout::Stress, stress_f_.data(), 6 * std::size_t{wn} * sizeof(float));
   block(VtuLayout::NodeId, node_id_.data(), node_id_.size() * sizeof(std::int32_t));
   block(VtuLayout::Damage, damage_f_.data(), std::size_t{wb} * sizeof(float));
   block(VtuLayout::State, state_.data(), wb);

@@ -75,6 +75,7 @@ struct VtuLayout {
   enum Array {
     Displacement, // Float32 x 3 per node
     Velocity,     // Float32 x 3 per node
+    Stress,       // Float32 x 6 per node (xx, yy, zz, xy, yz, xz), only when named
     Damage,       // Float32 per bar
     State,        // UInt8 per bar
     Force,        // Float32 per bar
@@ -113,7 +114,8 @@ struct VtuLayout {
 // The arrays a snapshot may hold, by the names they have in it (output.vtu_arrays chooses among
 // them): displacement and velocity per node; damage, state, axial_force and strain per bar; the
 // bar law's state arrays that snapshots carry; the material fields E, Gf, e_p and e_r (where the
-// material varies). The reference positions, the cells and a shaped body's node and bar numbers
+// material varies); and, only where output.vtu_arrays names it, the stress at the nodes
+// (node_stresses). The reference positions, the cells and a shaped body's node and bar numbers
 // are always written.
 std::vector<std::string> vtu_array_names(std::span<const StateArray> law_states);
 // The layout of a snapshot of `sim`'s body (`nodes` and `bars`: the whole body's present ones):
@@ -162,7 +164,9 @@ private:
   std::vector<std::int32_t> node_id_, bar_id_;
   std::string header_;
   std::vector<char> static_block_;
-  std::vector<float> disp_, vel_, damage_f_, force_f_, strain_f_;
+  std::vector<float> disp_, vel_, damage_f_, force_f_, strain_f_, stress_f_;
+  std::vector<Vec3> u_all_; // every node's displacement, for the stress
+  std::vector<double> stress_;
   std::vector<std::uint8_t> state_;
   std::vector<double> damage_, force_, strain_;
   std::vector<std::size_t> law_states_; // the law's state arrays written (VtuLayout::states)
@@ -177,6 +181,16 @@ private:
   std::vector<double> law_state_;
   std::vector<float> law_state_f_;
 };
+// The stress at each node [Pa] (docs/model.md, "Stress at the nodes"): the mean of the stresses
+// of the present modules that have the node (a centre node: its module's), a module's stress
+// being its bars' virial over its volume, (1 / L^3) sum_b w_b F_b l_b n_b n_b^T, with each bar's
+// share w_b: 1 for a diagonal, 1/2 for a centre-centre bar, 1 / (present modules sharing it)
+// for an edge bar. `u`: the displacement of every node, `force`: every bar's axial force
+// (Simulation::bar_snapshot). Into `out`, 6 per node in VTK's order of a symmetric tensor: xx,
+// yy, zz, xy, yz, xz (0 at a node of no present module).
+void node_stresses(const Lattice& lat, const std::vector<Vec3>& u, const std::vector<double>& force,
+                   std::vector<double>& out);
+
 // The ParaView collection that lists the snapshots.
 std::string lattice_pvd(const std::vector<std::pair<double, std::string>>& snapshots);
 
