@@ -47,6 +47,9 @@ private:
   void append_energy_rows(std::vector<double>& out);
   void append_events(std::vector<double>& out);
   void read_report(bool report);              // from received_
+  // A gauge from every process's terms of it (terms[rank], moved past them): each end's terms
+  // in its nodes' order, as one process sums them.
+  double gauge_from(const BuiltCase::Gauge& g, std::vector<const double*>& terms) const;
   void combine_numbers(const Lattice& whole); // numbers_ of the body from the processes' own
 
   int ranks_;
@@ -60,6 +63,7 @@ private:
   std::vector<std::size_t> bar_order_;
   std::vector<double> halo_[4];
   std::vector<double> received_; // gathers' buffer, kept from call to call
+  std::vector<const double*> terms_; // each process's part of received_ (control)
 };
 
 int node_owner(const Subdomain& any, const Lattice& whole, index_t node) {
@@ -70,6 +74,16 @@ int node_owner(const Subdomain& any, const Lattice& whole, index_t node) {
 int bar_owner(const Subdomain& any, const Lattice& whole, index_t bar) {
   const BarAddress a = whole.bar_address(bar);
   return owner_rank(any, a.j, a.k);
+}
+
+double DistributedBody::gauge_from(const BuiltCase::Gauge& g,
+                                   std::vector<const double*>& terms) const {
+  const Subdomain& sub = run_->subdomain();
+  double sums[2] = {0.0, 0.0};
+  for (int e = 0; e < 2; ++e)
+    for (index_t n : e == 0 ? g.from : g.to)
+      sums[e] += *terms[static_cast<std::size_t>(node_owner(sub, lattice(), n))]++;
+  return gauge_value(g, sums[0], sums[1]);
 }
 
 // Appends a list's length, then reserves it: returns the length's place, to be set.
@@ -256,19 +270,13 @@ void DistributedBody::control() {
   gather_on_first(send_, received_);
   controls_.resize(c_.controls.size());
   if (writes()) {
-    std::vector<const double*> terms;
+    terms_.clear();
     for (std::size_t pos = 0; pos < received_.size();
          pos += 1 + static_cast<std::size_t>(received_[pos]))
-      terms.push_back(received_.data() + pos + 1);
+      terms_.push_back(received_.data() + pos + 1);
     gauges_.resize(c_.controls.size());
-    for (std::size_t k = 0; k < c_.controls.size(); ++k) {
-      const BuiltCase::Gauge& g = c_.probe_gauges[c_.controls[k].probe];
-      double sums[2] = {0.0, 0.0};
-      for (int e = 0; e < 2; ++e)
-        for (index_t n : e == 0 ? g.from : g.to)
-          sums[e] += *terms[static_cast<std::size_t>(node_owner(sub, whole, n))]++;
-      gauges_[k] = gauge_value(g, sums[0], sums[1]);
-    }
+    for (std::size_t k = 0; k < c_.controls.size(); ++k)
+      gauges_[k] = gauge_from(c_.probe_gauges[c_.controls[k].probe], terms_);
     control_factors(sim.step_count(), gauges_);
   }
   broadcast_from_first(controls_.data(), static_cast<int>(controls_.size()));
@@ -405,13 +413,7 @@ void DistributedBody::read_report(bool report) {
     } else if (p.kind == ProbeSpec::Kind::Load) {
       probes_[i] = load_probe(p, t);
     } else {
-      // A gauge: each end's terms in its nodes' order, as one process sums them.
-      const BuiltCase::Gauge& g = c_.probe_gauges[i];
-      double sums[2] = {0.0, 0.0};
-      for (int e = 0; e < 2; ++e)
-        for (index_t n : e == 0 ? g.from : g.to)
-          sums[e] += *probe_terms[static_cast<std::size_t>(node_owner(sub, whole, n))]++;
-      probes_[i] = gauge_value(g, sums[0], sums[1]);
+      probes_[i] = gauge_from(c_.probe_gauges[i], probe_terms);
     }
   }
 }

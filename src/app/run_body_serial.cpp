@@ -37,8 +37,16 @@ private:
   std::vector<Span> bar_spans(bool) const override { return {{0, 0, lattice().num_bars()}}; }
   Ledger::State collect_ledger_and_events() override;
   std::vector<double> field_rows(index_t stride) override;
-  // The case's probes now.
+  // The case's probes now, and a gauge's value now: its terms summed over each end's nodes in
+  // order.
   std::vector<double> probes() const;
+  double gauge(const BuiltCase::Gauge& g) const {
+    double sums[2] = {0.0, 0.0};
+    for (int e = 0; e < 2; ++e)
+      for (index_t n : e == 0 ? g.from : g.to)
+        sums[e] += probe_term(g, c_.sim->displacement(n));
+    return gauge_value(g, sums[0], sums[1]);
+  }
   // The simulation's events found since the last look, added to events_.
   void keep_new_events();
 
@@ -49,14 +57,8 @@ void SerialBody::step(bool report) {
   if (!c_.controls.empty()) {
     // The controlled gauges now, as the probes sum them.
     gauges_.resize(c_.controls.size());
-    for (std::size_t k = 0; k < c_.controls.size(); ++k) {
-      const BuiltCase::Gauge& g = c_.probe_gauges[c_.controls[k].probe];
-      double sums[2] = {0.0, 0.0};
-      for (int e = 0; e < 2; ++e)
-        for (index_t n : e == 0 ? g.from : g.to)
-          sums[e] += probe_term(g, c_.sim->displacement(n));
-      gauges_[k] = gauge_value(g, sums[0], sums[1]);
-    }
+    for (std::size_t k = 0; k < c_.controls.size(); ++k)
+      gauges_[k] = gauge(c_.probe_gauges[c_.controls[k].probe]);
     control_factors(c_.sim->step_count(), gauges_);
     c_.sim->set_control_factors(controls_);
   }
@@ -81,15 +83,8 @@ std::vector<double> SerialBody::probes() const {
         values[i] -= reaction_term(sim, n, p.component);
     else if (p.kind == ProbeSpec::Kind::Load)
       values[i] = load_probe(p, sim.time());
-    else {
-      // A gauge: its terms summed over each end's nodes in order.
-      const BuiltCase::Gauge& g = c_.probe_gauges[i];
-      double sums[2] = {0.0, 0.0};
-      for (int e = 0; e < 2; ++e)
-        for (index_t n : e == 0 ? g.from : g.to)
-          sums[e] += probe_term(g, sim.displacement(n));
-      values[i] = gauge_value(g, sums[0], sums[1]);
-    }
+    else
+      values[i] = gauge(c_.probe_gauges[i]);
   }
   return values;
 }
