@@ -182,22 +182,18 @@ rc=$?
 if [ $rc -ne 2 ] || [ "$(grep -c "cannot be shared by 2 processes" "$T/err")" -ne 1 ] || [ -e "$T/thin" ]; then
   bad "a body thinner than the processes: rc $rc, $(cat "$T/err")"
 fi
-# Compressed snapshots are written by one process only: refused under mpirun, with the line.
-sed 's/^energy_every = 50/energy_every = 50\nvtu_compression = "zlib"/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/zlib.toml"
-mpi 2 run "$T/zlib.toml" --out "$T/zlib" --no-plot >/dev/null 2>"$T/err"
-rc=$?
-if [ $rc -ne 2 ] || [ "$(grep -c "zlib.toml:[0-9]*: output.vtu_compression: \"zlib\" snapshots are written by one process only" "$T/err")" -ne 1 ] ||
-  [ -e "$T/zlib" ]; then
-  bad "compressed snapshots under mpirun: rc $rc, $(cat "$T/err")"
-fi
-# So is the stress at the nodes.
-sed 's/^energy_every = 50/energy_every = 50\nvtu_arrays = ["damage", "stress"]/' "$SRC/cases/tutorial/notched_plate.toml" >"$T/stress.toml"
-mpi 2 run "$T/stress.toml" --out "$T/stress" --no-plot >/dev/null 2>"$T/err"
-rc=$?
-if [ $rc -ne 2 ] || [ "$(grep -c "stress.toml:[0-9]*: output.vtu_arrays: \"stress\" is written by one process only" "$T/err")" -ne 1 ] ||
-  [ -e "$T/stress" ]; then
-  bad "the stress at the nodes under mpirun: rc $rc, $(cat "$T/err")"
-fi
+# What is written by one process only is refused under mpirun, with the case's line and no
+# folder: compressed snapshots and the stress at the nodes.
+refused_on_two() { # name, the [output] line it adds, the message's start
+  sed "s/^energy_every = 50/energy_every = 50\n$2/" "$SRC/cases/tutorial/notched_plate.toml" >"$T/$1.toml"
+  mpi 2 run "$T/$1.toml" --out "$T/$1" --no-plot >/dev/null 2>"$T/err"
+  local rc=$?
+  if [ $rc -ne 2 ] || [ "$(grep -c "$1.toml:[0-9]*: $3" "$T/err")" -ne 1 ] || [ -e "$T/$1" ]; then
+    bad "$1 under mpirun: rc $rc, $(cat "$T/err")"
+  fi
+}
+refused_on_two zlib 'vtu_compression = "zlib"' 'output.vtu_compression: "zlib" snapshots are written by one process only'
+refused_on_two stress 'vtu_arrays = ["damage", "stress"]' 'output.vtu_arrays: "stress" is written by one process only'
 mpi 2 run "$SRC/cases/tutorial/notched_plate.toml" --out "$T/grid" --no-plot --process-grid 2 1 \
   >/dev/null 2>"$T/err"
 rc=$?

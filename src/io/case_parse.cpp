@@ -389,13 +389,13 @@ public:
         fail(a ? a : &t, w + k, fmt::format("expected {}", what));
       return arr;
     };
-    auto number = [&](const toml::node& e, const std::string& where) {
+    auto number = [&](const toml::node& e, const std::string& at_key) {
       if (!e.is_number())
-        fail(&e, where, fmt::format("expected a number, got {}", describe(e)));
+        fail(&e, at_key, fmt::format("expected a number, got {}", describe(e)));
       const double v =
           e.is_integer() ? static_cast<double>(*e.value<std::int64_t>()) : *e.value<double>();
       if (!std::isfinite(v))
-        fail(&e, where, fmt::format("expected a finite number, got {}", describe(e)));
+        fail(&e, at_key, fmt::format("expected a finite number, got {}", describe(e)));
       return v;
     };
     if (type == "linear") {
@@ -947,14 +947,14 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
         r.fail(t.get("value"), w + "value",
                "expected a velocity that is not zero for a controlled velocity (its direction "
                "and the fastest the controller may drive the set), got [0, 0, 0]");
-      ControlSpec cs;
-      cs.probe = r.get_string(*ct, "control", "probe", cw);
-      cs.rate = r.get_float(*ct, "control", "rate", cw);
-      if (cs.rate == 0.0)
+      ControlSpec control;
+      control.probe = r.get_string(*ct, "control", "probe", cw);
+      control.rate = r.get_float(*ct, "control", "rate", cw);
+      if (control.rate == 0.0)
         r.fail(ct->get("rate"), cw + "rate",
                "expected a rate that is not 0 (the probe's target is rate * t)");
-      cs.response_time = r.opt_float(*ct, "control", "response_time", cw).value_or(0.0);
-      v.control = cs;
+      control.response_time = r.opt_float(*ct, "control", "response_time", cw).value_or(0.0);
+      v.control = control;
       controls.push_back({ct, cw});
     }
     c.velocities.push_back(v);
