@@ -214,8 +214,8 @@ head -c 1000 "$T/good.ckpt" >"$T/bad/checkpoint/state.ckpt"
 expect_resume_error "truncated checkpoint" "a truncated checkpoint"
 printf '\xff' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=5000 conv=notrunc 2>/dev/null
 expect_resume_error "checksum mismatch" "a corrupt checkpoint"
-printf '\x08' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
-expect_resume_error "format version 8" "another format version"
+printf '\x09' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
+expect_resume_error "format version 9" "another format version"
 printf '\x03' | dd of="$T/bad/checkpoint/state.ckpt" bs=1 seek=8 conv=notrunc 2>/dev/null
 expect_resume_error "format version 3, written by an older ldem" "an older format version"
 # A checkpoint must belong to the folder it is in, and the folder must hold what it recorded;

@@ -237,8 +237,9 @@ TEST(Control, ANotchedBeamUnderCmodControlSoftensAtAConstantOpeningRate) {
   for (std::size_t r = 0; r < t.size(); ++r) {
     peak = std::max(peak, -load[r]); // the load line is pushed down: its reaction is negative
     // The mouth never closes: the controller draws the load line back only to slow it.
-    if (r > 0)
+    if (r > 0) {
       EXPECT_GE(cmod[r], cmod[r - 1] - 1e-8 * cmod[r]) << "t = " << t[r];
+    }
     // Once the start has settled (3 T), the CMOD lags its target by rate T / G, G the CMOD per
     // load-line deflection: 4 D / S = 1 for the halves turning as rigid bodies about the crack
     // tip, less while the beam bends elastically (about 0.7 here before the peak). G in

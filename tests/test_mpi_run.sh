@@ -47,7 +47,14 @@ sed -e 's/^end = .*/end = 1.0e-3/' -e 's/^value = \[0.0, 0.0, 0.02\]/value = [0.
   -e 's/^ramp = 2.0e-4/control = { probe = "notch_opening", rate = 0.02 }/' \
   "$SRC/cases/tutorial/notched_plate.toml" >"$T/controlled.toml"
 grep -q '^control = ' "$T/controlled.toml" || bad "controlled.toml: the tutorial's velocity is not where it was"
-for c in tutorial graded fatigue jumping loaded controlled; do
+# And the tutorial plate pressed on its sides while it is pulled: a frictional platen moving in
+# on its left face and a roller with friction on its right face (both across the 2-process
+# cut), with a probe of each platen's force and of the roller's travel.
+{ sed 's/^end = .*/end = 1.0e-3/' "$SRC/cases/tutorial/notched_plate.toml"
+  printf '\n[[platen]]\nname = "left"\npoint = [-1.0e-5, 0.0, 0.0]\nnormal = [1.0, 0.0, 0.0]\nvelocity = [0.5, 0.0, 0.0]\nramp = 2.0e-4\nfriction = 0.3\n'
+  printf '\n[[platen]]\nname = "roller"\nshape = "cylinder"\npoint = [0.21, 0.0, 0.05]\naxis = [0.0, 1.0, 0.0]\nradius = 0.01\nvelocity = [-0.5, 0.0, 0.0]\nramp = 2.0e-4\nfriction = 0.3\n'
+  printf '\n[[probe]]\nname = "left_x"\nkind = "platen"\nplaten = "left"\ncomponent = "x"\n\n[[probe]]\nname = "left_z"\nkind = "platen"\nplaten = "left"\ncomponent = "z"\n\n[[probe]]\nname = "roller_x"\nkind = "platen"\nplaten = "roller"\ncomponent = "x"\n\n[[probe]]\nname = "travel"\nkind = "platen_displacement"\nplaten = "roller"\ncomponent = "x"\n'; } >"$T/pressed.toml"
+for c in tutorial graded fatigue jumping loaded controlled pressed; do
   "$LDEM" run "$T/$c.toml" --out "$T/$c-1" --no-plot --threads 1 >/dev/null 2>"$T/err" ||
     bad "$c on one process: $(cat "$T/err")"
   for np in "$@"; do

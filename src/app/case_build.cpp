@@ -398,6 +398,19 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       const Vec3 force = force_per_weight(l, weight);
       cond.loads.push_back({set, force, l.scale, std::move(weight)});
     }
+    for (const PlatenSpec& p : s.platens) {
+      Platen pl;
+      pl.name = p.name;
+      pl.kind = p.kind;
+      pl.point = p.point;
+      pl.normal = p.direction;
+      pl.radius = p.radius;
+      pl.velocity = p.velocity;
+      pl.scale = p.scale;
+      pl.friction = p.friction;
+      pl.penalty = p.penalty;
+      cond.platens.push_back(std::move(pl));
+    }
     check_conditions_agree(s, c.sets, lat);
     // A gauge's end: the present node nearest a point, or a node set's nodes; and its mean
     // position.
@@ -791,7 +804,7 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
       t.as_table()->is_inline(true);
     return terms;
   };
-  toml::array fixed, vel, loads, cracks, probes;
+  toml::array fixed, vel, loads, platens, cracks, probes;
   for (const FixedSpec& f : s.fixed)
     fixed.push_back(toml::table{{"set", f.set}, {"dofs", dofs_text(f.dofs)}});
   std::size_t next_control = 0;
@@ -826,6 +839,18 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     if (l.kind == LoadSpec::Kind::Acceleration)
       t.insert("mass", weight);
     loads.push_back(std::move(t));
+  }
+  for (const PlatenSpec& p : s.platens) {
+    const bool plane = p.kind == Platen::Kind::Plane;
+    toml::table t{{"name", p.name}, {"shape", plane ? "plane" : "cylinder"}, {"point", vec(p.point)}};
+    t.insert(plane ? "normal" : "axis", vec(p.direction));
+    if (!plane)
+      t.insert("radius", p.radius);
+    t.insert("velocity", vec(p.velocity));
+    t.insert("function", function(p.scale));
+    t.insert("friction", p.friction);
+    t.insert("penalty", p.penalty);
+    platens.push_back(std::move(t));
   }
   for (std::size_t i = 0; i < s.precracks.size(); ++i) {
     const PrecrackSpec& p = s.precracks[i];
@@ -882,6 +907,11 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
       }
       if (p.kind != ProbeSpec::Kind::Strain)
         t.insert("component", std::string(1, static_cast<char>('x' + p.component)));
+    } else if (p.kind == ProbeSpec::Kind::Platen ||
+               p.kind == ProbeSpec::Kind::PlatenDisplacement) {
+      t.insert("kind", p.kind == ProbeSpec::Kind::Platen ? "platen" : "platen_displacement");
+      t.insert("platen", p.platen);
+      t.insert("component", std::string(1, static_cast<char>('x' + p.component)));
     } else {
       t.insert("kind", "load");
       t.insert("load", p.load);
@@ -894,6 +924,8 @@ std::string resolved_case_toml(const BuiltCase& c, const BodyNumbers& body) {
     root.insert("velocity", vel);
   if (!loads.empty())
     root.insert("load", loads);
+  if (!platens.empty())
+    root.insert("platen", platens);
   if (!cracks.empty())
     root.insert("precrack", cracks);
   const char* rule = s.step.rule == TimeStep::Rule::Given   ? "dt"

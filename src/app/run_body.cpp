@@ -75,6 +75,14 @@ double RunBody::reaction_term(const Simulation& sim, index_t node, int component
   return component == 0 ? f.x + l.x : component == 1 ? f.y + l.y : f.z + l.z;
 }
 
+std::size_t RunBody::platen_index(const std::string& name) const {
+  const auto& platens = c_.spec.platens;
+  return static_cast<std::size_t>(
+      std::find_if(platens.begin(), platens.end(),
+                   [&](const PlatenSpec& q) { return q.name == name; }) -
+      platens.begin());
+}
+
 checkpoint::Progress RunBody::body_progress() const {
   checkpoint::Progress p;
   p.step = step_count();
@@ -83,6 +91,7 @@ checkpoint::Progress RunBody::body_progress() const {
   p.bars = lattice().num_bars();
   p.law = std::string(sim().law_name());
   p.arrays = sim().state_arrays();
+  p.platens = sim().platen_positions();
   return p;
 }
 
@@ -162,8 +171,9 @@ std::string RunBody::read_checkpoint(const std::string& path) {
   initial_ = p.ledger.initial;
   // The body's accumulated work and damping go to the first process; the others add from zero.
   if (!writes())
-    p.ledger = Ledger::State{{}, {}, initial_};
+    p.ledger = Ledger::State{{}, {}, {}, initial_};
   s.restore_progress(p.step, p.ledger, p.report, {});
+  s.set_platen_positions(p.platens);
   report_ = p.report;
   events_ = writes() ? std::move(p.events) : std::vector<Event>{};
   return h.meta;

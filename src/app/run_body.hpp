@@ -131,6 +131,8 @@ protected:
   std::vector<Event> take_kept_events();
   // A probe's value that needs no simulation: the total of a load at time t.
   double load_probe(const ProbeSpec& p, double t) const;
+  // The index of the platen named `name` in the case's platens (Conditions::platens).
+  std::size_t platen_index(const std::string& name) const;
   // The factors of the controlled velocities for the step from t_n = step * dt, from their
   // gauges' values at t_n: f = clamp((rate t_{n+1} - g_n) / (response_time speed), -1, 1)
   // (docs/model.md, "Probe-controlled loading"). Into controls_.

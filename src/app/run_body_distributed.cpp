@@ -168,7 +168,8 @@ void DistributedBody::agree_on_body() {
   // The body's material summary, stable step and dt, as one process finds them.
   try {
     combine_numbers(whole);
-    stable_ = distributed_stable_step(*run_, whole);
+    run_->sim().set_platen_stiffness(numbers_.ranges.E[1], numbers_.ranges.rho[0]);
+    stable_ = with_platens(distributed_stable_step(*run_, whole), run_->sim().conditions());
     dt_ = time_step_by_rule(c.options.step, stable_, numbers_.ranges.E[1], numbers_.ranges.rho[0],
                             whole.L(), c.options.damping);
   } catch (const InputError& e) {
@@ -243,6 +244,14 @@ void DistributedBody::step(bool report) {
   exchange_halos(*run_, halo_);
   if (!report && !first_step)
     return;
+  if (report) // the platens' forces at t_n, which the step found
+    for (const ProbeSpec& p : c_.spec.probes)
+      if (p.kind == ProbeSpec::Kind::Platen) {
+        const ExactSum& f = run_->sim().platen_force_sum(
+            platen_index(p.platen))[static_cast<std::size_t>(p.component)];
+        send_.resize(send_.size() + ExactSum::kDoubles);
+        f.write(send_.data() + send_.size() - ExactSum::kDoubles);
+      }
   append_energy_rows(send_);
   append_events(send_);
   gather_on_first(send_, received_);
@@ -300,7 +309,9 @@ void DistributedBody::append_probe_terms(std::vector<double>& out) const {
       for (index_t n : set_named(c_.sets, p.set).nodes)
         if (node_owner(sub, whole, n) == sub.rank)
           out.push_back(reaction_term(sim, run_->local_node(whole.node_address(n)), p.component));
-    } else if (p.kind != ProbeSpec::Kind::BarForce && p.kind != ProbeSpec::Kind::Load) {
+    } else if (p.kind != ProbeSpec::Kind::BarForce && p.kind != ProbeSpec::Kind::Load &&
+               p.kind != ProbeSpec::Kind::Platen &&
+               p.kind != ProbeSpec::Kind::PlatenDisplacement) {
       const BuiltCase::Gauge& g = c_.probe_gauges[i];
       for (const auto* nodes : {&g.from, &g.to})
         for (index_t n : *nodes)
@@ -320,8 +331,9 @@ void DistributedBody::append_energy_rows(std::vector<double>& out) {
   run_->append_owned_energy_rows(rows);
   // The exact sums this process adds up (work, twice the damping, the imposed-velocity DOF's
   // kinetic energy), then the row counts and rows.
-  for (const ExactSum* e :
-       {&sim.report_work(), &sim.report_twice_damping(), &sim.report_condition_kinetic()}) {
+  for (const ExactSum* e : {&sim.report_work(), &sim.report_twice_damping(),
+                            &sim.report_condition_kinetic(), &sim.report_contact(),
+                            &sim.ledger_state().friction}) {
     out.resize(out.size() + ExactSum::kDoubles);
     e->write(out.data() + out.size() - ExactSum::kDoubles);
   }
@@ -356,14 +368,25 @@ void DistributedBody::read_report(bool report) {
   // order.
   std::vector<const double*> probe_terms;
   std::vector<double> elastic_rows, damage_rows, fatigue_rows, kinetic_rows;
-  ExactSum work, damping2, kinetic;
+  ExactSum work, damping2, kinetic, contact, friction;
+  std::vector<ExactSum> platen_forces; // per platen probe, in the probes' order
   std::size_t pos = 0;
   for (int r = 0; r < ranks_; ++r) {
     if (report) {
       probe_terms.push_back(all.data() + pos + 1);
       pos += 1 + static_cast<std::size_t>(all[pos]);
+      std::size_t k = 0;
+      for (const ProbeSpec& p : probes)
+        if (p.kind == ProbeSpec::Kind::Platen) {
+          if (platen_forces.size() <= k)
+            platen_forces.emplace_back();
+          ExactSum part;
+          part.read(all.data() + pos);
+          platen_forces[k++].add(part);
+          pos += ExactSum::kDoubles;
+        }
     }
-    for (ExactSum* e : {&work, &damping2, &kinetic}) {
+    for (ExactSum* e : {&work, &damping2, &kinetic, &contact, &friction}) {
       ExactSum part;
       part.read(all.data() + pos);
       e->add(part);
@@ -395,13 +418,15 @@ void DistributedBody::read_report(bool report) {
     initial_ = elastic + kinetic.value();
   report_ = energy_report(
       t, work.value(), elastic, kinetic.value(), damage, 0.5 * damping2.value(), initial_,
-      balance_floor(numbers_.ranges.E[1], numbers_.ranges.e_p[1], lattice().volume()), fatigue);
+      balance_floor(numbers_.ranges.E[1], numbers_.ranges.e_p[1], lattice().volume()), fatigue,
+      contact.value(), friction.value());
   if (!report)
     return;
   // Probes: the owner's bar force; a reaction's terms subtracted in the set's order, each
   // from the process that owns the node.
   const Subdomain& sub = run_->subdomain();
   probes_.assign(probes.size(), 0.0);
+  std::size_t platen_probe = 0;
   for (std::size_t i = 0; i < probes.size(); ++i) {
     const ProbeSpec& p = probes[i];
     if (p.kind == ProbeSpec::Kind::BarForce) {
@@ -412,6 +437,12 @@ void DistributedBody::read_report(bool report) {
         probes_[i] -= *probe_terms[static_cast<std::size_t>(node_owner(sub, whole, n))]++;
     } else if (p.kind == ProbeSpec::Kind::Load) {
       probes_[i] = load_probe(p, t);
+    } else if (p.kind == ProbeSpec::Kind::Platen) {
+      probes_[i] = platen_forces[platen_probe++].value();
+    } else if (p.kind == ProbeSpec::Kind::PlatenDisplacement) {
+      // (After the step: its displacement at t_n is the one before the current.)
+      probes_[i] = run_->sim().platen_positions()[6 * platen_index(p.platen) + 3 +
+                                                  static_cast<std::size_t>(p.component)];
     } else {
       probes_[i] = gauge_from(c_.probe_gauges[i], probe_terms);
     }
@@ -462,7 +493,7 @@ Ledger::State DistributedBody::collect_ledger_and_events() {
   gather_on_first(mine, received_);
   if (!writes())
     return ledger;
-  ledger = Ledger::State{{}, {}, initial_};
+  ledger = Ledger::State{{}, {}, {}, initial_};
   const double* in = received_.data();
   for (int r = 0; r < ranks_; ++r) {
     Ledger::State part;

@@ -65,8 +65,15 @@ void SerialBody::step(bool report) {
   if (report)
     probes_ = probes();
   c_.sim->step(report);
-  if (report)
+  if (report) {
     report_ = c_.sim->last_report();
+    // A platen's force at t_n: the step's contact forces (from u_n and the friction's state).
+    const auto& spec = c_.spec.probes;
+    for (std::size_t i = 0; i < spec.size(); ++i)
+      if (spec[i].kind == ProbeSpec::Kind::Platen) {
+        probes_[i] = c_.sim->platen_force(platen_index(spec[i].platen))[spec[i].component];
+      }
+  }
 }
 
 std::vector<double> SerialBody::probes() const {
@@ -83,6 +90,10 @@ std::vector<double> SerialBody::probes() const {
         values[i] -= reaction_term(sim, n, p.component);
     else if (p.kind == ProbeSpec::Kind::Load)
       values[i] = load_probe(p, sim.time());
+    else if (p.kind == ProbeSpec::Kind::Platen)
+      continue; // set by the step (step())
+    else if (p.kind == ProbeSpec::Kind::PlatenDisplacement)
+      values[i] = sim.platen_offset(platen_index(p.platen))[p.component];
     else
       values[i] = gauge(c_.probe_gauges[i]);
   }

@@ -207,7 +207,8 @@ std::string continued_json(const RunState& st, double dt) {
 bool energies_finite(const EnergyReport& r) {
   return std::isfinite(r.external_work) && std::isfinite(r.elastic) && std::isfinite(r.kinetic) &&
          std::isfinite(r.damage_dissipated) && std::isfinite(r.damping_dissipated) &&
-         std::isfinite(r.fatigue_dissipated) && std::isfinite(r.balance_error);
+         std::isfinite(r.fatigue_dissipated) && std::isfinite(r.contact) &&
+         std::isfinite(r.friction_dissipated) && std::isfinite(r.balance_error);
 }
 } // namespace
 
@@ -235,13 +236,16 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   const auto energy = open(kLogs[0], 0), events = open(kLogs[1], 1), probes = open(kLogs[2], 2);
   // A law with a fatigue life adds the energy its broken bars held (a column before the error).
   const bool fatigue_column = body.counts_cycles();
+  // Platens add the energy their springs hold and what their friction dissipated (after it).
+  const bool platen_columns = !s.platens.empty();
   // Cycle jumping adds the cycles jumped before each row's state (after the error).
   const std::optional<FatigueSpec>& fatigue = s.material.fatigue;
   const bool jumping = fatigue && fatigue->jump && c.cycle.has_value();
   if (fresh && writes) {
     energy->write(fmt::format("time,external_work,elastic,kinetic,damage_dissipated,"
-                              "damping_dissipated,{}balance_error{}\n",
+                              "damping_dissipated,{}{}balance_error{}\n",
                               fatigue_column ? "fatigue_dissipated," : "",
+                              platen_columns ? "contact_energy,friction_dissipated," : "",
                               jumping ? ",jumped_cycles" : ""));
     events->write("bar,event,time,x,y,z\n");
     std::string head = "time";
@@ -417,12 +421,14 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       flush_events();
       const EnergyReport& r = body.last_report();
       energy->write(fmt::format(
-          "{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}{:.6g}{}\n", r.time, r.external_work,
+          "{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}{}{:.6g}{}\n", r.time, r.external_work,
           r.elastic, r.kinetic, r.damage_dissipated, r.damping_dissipated,
           fatigue_column ? fmt::format("{:.9g},", r.fatigue_dissipated) : std::string(),
+          platen_columns ? fmt::format("{:.9g},{:.9g},", r.contact, r.friction_dissipated)
+                         : std::string(),
           r.balance_error, jumping ? fmt::format(",{:.17g}", st.jumped_cycles) : std::string()));
-      if (r.external_work + r.initial >
-              1e-6 * (r.elastic + r.kinetic + r.damage_dissipated + r.fatigue_dissipated) &&
+      if (r.external_work + r.initial > 1e-6 * (r.elastic + r.kinetic + r.damage_dissipated +
+                                                r.fatigue_dissipated + r.contact) &&
           n > 0)
         st.max_balance = std::max(st.max_balance, r.balance_error);
       if (std::chrono::steady_clock::now() - last_flush > std::chrono::seconds(1))

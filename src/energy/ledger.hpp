@@ -1,4 +1,5 @@
-// The energy balance: external work = elastic + kinetic + damage + damping + fatigue (+ initial).
+// The energy balance: external work (+ initial) = elastic + kinetic + damage + damping + fatigue
+// + contact + friction.
 #pragma once
 
 #include "energy/exact_sum.hpp"
@@ -15,15 +16,17 @@ struct EnergyReport {
   double damage_dissipated = 0.0; // sum over bars of the area O-A-P (paper Fig. 1c)
   double damping_dissipated = 0.0;
   double fatigue_dissipated = 0.0; // stored in bars when their fatigue life ran out
+  double contact = 0.0;            // held in the platens' penalty springs (normal and sticking)
+  double friction_dissipated = 0.0; // by the platens' Coulomb friction
   double initial = 0.0;       // elastic + kinetic energy at t = 0 (initial velocities)
-  double balance_error = 0.0; // |W + E0 - (U + K + D + Dc)| / max(|W + E0|, floor): relative
+  double balance_error = 0.0; // |W + E0 - (U + K + D + Dc + ...)| / max(|W + E0|, floor)
 };
 
 // A report from its energies, with the balance error relative to the energy put in, W + E0,
 // or to `floor` while that is smaller (balance_floor).
 EnergyReport energy_report(double time, double external_work, double elastic, double kinetic,
                            double damage, double damping, double initial, double floor,
-                           double fatigue = 0.0);
+                           double fatigue = 0.0, double contact = 0.0, double friction = 0.0);
 
 // The smallest energy the balance error is taken relative to: a billionth of E V e_p^2 / 2, the
 // energy the body would hold with every bar at its peak strain, with the largest E and e_p of the
@@ -41,20 +44,23 @@ class Ledger {
 public:
   struct State {
     ExactSum work, damping;
+    ExactSum friction; // dissipated by the platens' friction
     double initial = 0.0;
-    static constexpr int kDoubles = 2 * ExactSum::kDoubles + 1;
+    static constexpr int kDoubles = 3 * ExactSum::kDoubles + 1;
     void write(double* out) const;
     void read(const double* in);
     // The sum of two processes' accumulators (the initial energy is the body's, kept).
     void add(const State& other) {
       work.add(other.work);
       damping.add(other.damping);
+      friction.add(other.friction);
     }
   };
 
   // A step's terms, each added exactly.
   ExactSum& work() { return s_.work; }
   ExactSum& damping() { return s_.damping; }
+  ExactSum& friction() { return s_.friction; }
   void set_initial(double energy) { s_.initial = energy; }
   double initial() const { return s_.initial; }
   const State& state() const { return s_; }

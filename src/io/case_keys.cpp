@@ -122,6 +122,17 @@ const std::vector<KeyDecl>& case_keys() {
     {"load", "total", "[3 floats]", "-", "N", -kInf, kInf, false, false, "", "The whole force on the set, scaled by the time function, spread over the surface the set covers by the area each node stands for (as traction: traction = total / area): a load cell's force on a loading plate."},
     {"load", "acceleration", "[3 floats]", "-", "m/s^2", -kInf, kInf, false, false, "", "A body force per unit mass (gravity: [0, 0, -9.81]), scaled by the time function: each node of the set takes its lumped mass times it (a set by all: the whole body's weight, rho V g). A load constant in time costs nothing per step; one that varies costs a pass over its nodes each step."},
 
+    {"platen", "name", "string", "required", "", -kInf, kInf, false, false, "", "Name (for probes and messages)."},
+    {"platen", "shape", "string", "\"plane\"", "", -kInf, kInf, false, false, "\"plane\", \"cylinder\"", "A plane (a loading platen, a support, a wall that holds fragments) or a cylinder (a roller support, a loading roller, an indenter) that the body stays outside of."},
+    {"platen", "point", "[3 floats]", "required", "m", -kInf, kInf, false, false, "", "Where it is at t = 0: plane, a point of its face; cylinder, a point of its axis."},
+    {"platen", "normal", "[3 floats]", "-", "", -kInf, kInf, false, false, "", "plane: its normal (not zero; scaled to unit length), pointing from the platen towards the body: nodes with (x - point) . normal < 0 have passed it and are pushed back."},
+    {"platen", "axis", "[3 floats]", "-", "", -kInf, kInf, false, false, "", "cylinder: the direction of its axis (not zero); it is infinitely long."},
+    {"platen", "radius", "float", "-", "m", 0, kInf, true, false, "", "cylinder: its radius."},
+    {"platen", "velocity", "[3 floats]", "[0, 0, 0]", "m/s", -kInf, kInf, false, false, "", "Its velocity, scaled by the time function (ramp or function, as a [[velocity]]'s); it moves without turning. [0, 0, 0]: it stays where it is."},
+    {"platen", "ramp", "float", "-", "s", 0, kInf, true, false, "", "Shortcut for function = [{type = \"ramp\", value = 1, duration = ramp}]."},
+    {"platen", "friction", "float", "0", "", 0, kInf, false, false, "", "Coulomb friction coefficient mu between the platen and the body: a touching node sticks while its tangential force is below mu times its normal force, and slides, dissipating, at that force (docs/model.md, \"Platens\"). 0: frictionless."},
+    {"platen", "penalty", "float", "1", "", 0, kInf, true, false, "", "The penalty spring's stiffness: k = penalty E L on a node of a body face (E the body's largest, L the module size), in proportion to the node's lumped mass elsewhere (half on an edge, a quarter at a corner). The platen sinks into a face under a stress sigma by about sigma L / (penalty E); the stable step shrinks as sqrt(omega^2 + kappa) grows with kappa = 4 penalty E / (rho L^2)."},
+
     {"function", "type", "string", "required", "", -kInf, kInf, false, false, "\"constant\", \"ramp\", \"exp_rise\", \"growing_sine\", \"table\"", "One term of the time function of a velocity or load (`function = [{...}, ...]`, summed); without `function` the factor is 1. Every term is 0 before its t_start and from its t_end on; s = t - t_start is its own time."},
     {"function", "value", "float", "1", "", -kInf, kInf, false, false, "", "constant: value; ramp: value * min(s / duration, 1); exp_rise: value * (1 - exp(-s / tau))."},
     {"function", "duration", "float", "-", "s", 0, kInf, true, false, "", "ramp: time to reach the value."},
@@ -176,10 +187,11 @@ const std::vector<KeyDecl>& case_keys() {
     {"analysis", "fatigue_width", "float", "-", "m", 0, kInf, true, false, "", "Default the body's size along the crack. Width b of the single-edge-cracked plate in Delta K = Delta sigma sqrt(pi a) F(a/b)."},
 
     {"probe", "name", "string", "required", "", -kInf, kInf, false, false, "", "Column name in probes.csv."},
-    {"probe", "kind", "string", "required", "", -kInf, kInf, false, false, "\"bar_force\", \"reaction\", \"load\", \"displacement\", \"opening\", \"strain\"", "What to record."},
+    {"probe", "kind", "string", "required", "", -kInf, kInf, false, false, "\"bar_force\", \"reaction\", \"load\", \"displacement\", \"opening\", \"strain\", \"platen\", \"platen_displacement\"", "What to record."},
     {"probe", "at", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "bar_force: axial force [N] of the bar whose centre is nearest to this point. displacement: the displacement [m] of the body's node nearest to this point (an LVDT)."},
     {"probe", "set", "string", "-", "", -kInf, kInf, false, false, "", "reaction: the static support force on the set [N]: minus the sum of the bar forces and loads on its nodes, the whole support force on held DOF; on imposed-velocity DOF without the driven nodes' inertia and damping (docs/model.md, 6). displacement (instead of at): the mean displacement [m] of the set's nodes."},
-    {"probe", "component", "string", "\"z\"", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "reaction, displacement, opening: component."},
+    {"probe", "component", "string", "\"z\"", "", -kInf, kInf, false, false, "\"x\", \"y\", \"z\"", "reaction, displacement, opening, platen, platen_displacement: component."},
+    {"probe", "platen", "string", "-", "", -kInf, kInf, false, false, "", "platen: name of the [[platen]] whose force on the body [N] is recorded (the sum of its contact forces, normal and friction, along the component). platen_displacement: the platen whose displacement from its place at t = 0 [m] is recorded."},
     {"probe", "from", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "opening, strain: the gauge's first end, the body's node nearest to this point (or give from_set)."},
     {"probe", "from_set", "string", "-", "", -kInf, kInf, false, false, "", "opening, strain: the gauge's first end, the mean over this node set's nodes (their mean position for the gauge length)."},
     {"probe", "to", "[3 floats]", "-", "m", -kInf, kInf, false, false, "", "opening, strain: the gauge's second end, the node nearest to this point (or give to_set). opening: u(to) - u(from) along the component [m] (a CMOD or crack-opening gauge); strain: (u(to) - u(from)) . d / l, d the unit vector from the first end's position to the second's and l their distance (an extensometer)."},
@@ -201,8 +213,8 @@ std::string case_format_markdown() {
       "\"bilinear_fatigue\"` only), `[time]`, `[output]`, `[analysis]`; arrays\n"
       "of tables:\n"
       "`[[geometry]]`, `[[region]]`, `[[node_set]]`, `[[fixed]]`, `[[velocity]]`, `[[load]]`,\n"
-      "`[[precrack]]`, `[[probe]]`;\n"
-      "a velocity or load may carry `function = [{ type = ..., ... }, ...]`, whose terms are\n"
+      "`[[platen]]`, `[[precrack]]`, `[[probe]]`;\n"
+      "a velocity, load or platen may carry `function = [{ type = ..., ... }, ...]`, whose terms are\n"
       "summed, and a velocity `control = { probe = ..., rate = ... }` instead; a node set may\n"
       "be a shape, `shape = { type = ..., ... }`. Coordinates are in\n"
       "metres from the box's corner at the origin; the box spans\n"
@@ -212,7 +224,8 @@ std::string case_format_markdown() {
     if (std::string(k.table) != last) {
       const std::string t = k.table;
       const bool array = t == "geometry" || t == "region" || t == "node_set" || t == "fixed" ||
-                         t == "velocity" || t == "load" || t == "precrack" || t == "probe";
+                         t == "velocity" || t == "load" || t == "platen" || t == "precrack" ||
+                         t == "probe";
       md += fmt::format("\n## {}\n\n| key | type | default | unit | allowed | meaning |\n"
                         "|---|---|---|---|---|---|\n",
                         t == "field"      ? "material fields (`E = { type = ... }`)"

@@ -52,8 +52,8 @@ std::vector<std::string> split_choices(const std::string& choices) {
 }
 
 const char* kTopTables[] = {"case", "lattice", "material", "fatigue", "time", "output", "analysis"};
-const char* kArrayTables[] = {"geometry", "region", "node_set", "fixed",
-                              "velocity", "load",   "precrack", "probe"};
+const char* kArrayTables[] = {"geometry", "region", "node_set", "fixed",  "velocity",
+                              "load",     "platen", "precrack", "probe"};
 
 class Reader {
 public:
@@ -98,7 +98,8 @@ public:
         if (std::string(d.table) != table)
           continue;
         if (key == d.key || (std::string(table) == "velocity" && key == "function") ||
-            (std::string(table) == "load" && key == "function")) {
+            (std::string(table) == "load" && key == "function") ||
+            (std::string(table) == "platen" && key == "function")) {
           known = true;
           break;
         }
@@ -985,6 +986,61 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
     c.loads.push_back(
         {r.get_string(t, "load", "name", w), known_set(t, w), kind, *given, r.function(t, w)});
   }
+  const auto platens = array("platen");
+  for (std::size_t i = 0; i < platens.size(); ++i) {
+    const toml::table& t = *platens[i];
+    const std::string w = fmt::format("platen[{}].", i);
+    r.check_known(t, "platen", w);
+    PlatenSpec p;
+    p.name = r.get_string(t, "platen", "name", w);
+    for (const PlatenSpec& q : c.platens)
+      if (q.name == p.name)
+        r.fail(t.get("name"), w + "name",
+               fmt::format("expected a name no other platen has, got \"{}\" again", p.name));
+    const std::string shape = r.get_string(t, "platen", "shape", w);
+    p.kind = shape == "cylinder" ? Platen::Kind::Cylinder : Platen::Kind::Plane;
+    const char* along = p.kind == Platen::Kind::Plane ? "normal" : "axis";
+    if (p.kind == Platen::Kind::Plane)
+      r.only(t, w, "a \"plane\" platen",
+             {"name", "shape", "point", "normal", "velocity", "ramp", "function", "friction",
+              "penalty"});
+    else
+      r.only(t, w, "a \"cylinder\" platen",
+             {"name", "shape", "point", "axis", "radius", "velocity", "ramp", "function",
+              "friction", "penalty"});
+    const auto point = r.opt_vec3(t, "platen", "point", w);
+    if (!point)
+      r.fail(&t, w + "point",
+             fmt::format("missing: a {} platen needs point = [x, y, z] ({})", shape,
+                         p.kind == Platen::Kind::Plane ? "a point of its face"
+                                                       : "a point of its axis"));
+    p.point = *point;
+    const auto dir = r.opt_vec3(t, "platen", along, w);
+    const double len = dir ? std::sqrt(dir->x * dir->x + dir->y * dir->y + dir->z * dir->z) : 0.0;
+    if (!(len > 0.0) || !std::isfinite(len))
+      r.fail(dir ? t.get(along) : &t, w + along,
+             dir ? fmt::format("expected a vector that is not zero, got [{}, {}, {}]", dir->x,
+                               dir->y, dir->z)
+                 : fmt::format("missing: a {} platen needs {} = [x, y, z] ({})", shape, along,
+                               p.kind == Platen::Kind::Plane
+                                   ? "its normal, pointing from the platen towards the body"
+                                   : "the direction of its axis"));
+    p.direction = {dir->x / len, dir->y / len, dir->z / len};
+    if (p.kind == Platen::Kind::Cylinder) {
+      const auto radius = r.opt_float(t, "platen", "radius", w);
+      if (!radius)
+        r.fail(&t, w + "radius", "missing: a cylinder platen needs radius (m)");
+      p.radius = *radius;
+    }
+    p.velocity = r.opt_vec3(t, "platen", "velocity", w).value_or(Vec3{});
+    const auto ramp = r.opt_float(t, "platen", "ramp", w);
+    if (ramp && t.contains("function"))
+      r.fail(t.get("ramp"), w + "ramp", "expected ramp or function, not both");
+    p.scale = ramp ? TimeFunction({LinearRamp{1.0, *ramp}}) : r.function(t, w);
+    p.friction = r.get_float(t, "platen", "friction", w);
+    p.penalty = r.get_float(t, "platen", "penalty", w);
+    c.platens.push_back(p);
+  }
   const auto cracks = array("precrack");
   for (std::size_t i = 0; i < cracks.size(); ++i) {
     const toml::table& t = *cracks[i];
@@ -1136,6 +1192,8 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
       r.only(t, w, what, {"name", "kind", "from", "from_set", "to", "to_set", "component"});
     else if (kind == "strain")
       r.only(t, w, what, {"name", "kind", "from", "from_set", "to", "to_set"});
+    else if (kind == "platen" || kind == "platen_displacement")
+      r.only(t, w, what, {"name", "kind", "platen", "component"});
     else
       r.only(t, w, what, {"name", "kind", "load"});
     // A gauge's end (a displacement's node): a point or a node set, one of the two.
@@ -1179,6 +1237,16 @@ CaseSpec parse_case(const std::string& text, const std::string& name) {
       if (!t.contains("set"))
         r.fail(&t, w + "set", "missing: a reaction probe needs set");
       p.set = known_set(t, w);
+      p.component = r.get_string(t, "probe", "component", w)[0] - 'x';
+    } else if (kind == "platen" || kind == "platen_displacement") {
+      p.kind = kind == "platen" ? ProbeSpec::Kind::Platen : ProbeSpec::Kind::PlatenDisplacement;
+      const auto named = r.opt_string(t, "probe", "platen", w);
+      if (!named || std::none_of(c.platens.begin(), c.platens.end(),
+                                 [&](const PlatenSpec& q) { return q.name == *named; }))
+        r.fail(t.get("platen") ? t.get("platen") : &t, w + "platen",
+               fmt::format("expected the name of a [[platen]], got {}",
+                           named ? "\"" + *named + "\"" : "nothing"));
+      p.platen = *named;
       p.component = r.get_string(t, "probe", "component", w)[0] - 'x';
     } else {
       p.kind = ProbeSpec::Kind::Load;

@@ -67,6 +67,21 @@ struct LoadSpec {
   TimeFunction scale;
 };
 
+// A rigid platen ([[platen]]): a plane, or a cylinder for a roller or an indenter, moving at
+// velocity * scale(t), pushing with a penalty spring and rubbing with Coulomb friction
+// (solver's Platen; docs/model.md, "Platens").
+struct PlatenSpec {
+  std::string name;
+  Platen::Kind kind = Platen::Kind::Plane;
+  Vec3 point;
+  Vec3 direction; // plane: its normal towards the body; cylinder: its axis (unit length)
+  double radius = 0.0;
+  Vec3 velocity;
+  TimeFunction scale;
+  double friction = 0.0;
+  double penalty = 1.0; // the normal spring of a face node, in E L
+};
+
 struct PrecrackSpec {
   Rectangle rect;
   bool nudge = false;
@@ -74,12 +89,22 @@ struct PrecrackSpec {
 
 struct ProbeSpec {
   std::string name;
-  enum class Kind { BarForce, Reaction, Load, Displacement, Opening, Strain } kind = Kind::BarForce;
+  enum class Kind {
+    BarForce,
+    Reaction,
+    Load,
+    Displacement,
+    Opening,
+    Strain,
+    Platen,
+    PlatenDisplacement
+  } kind = Kind::BarForce;
   Vec3 at;           // bar_force: the bar whose centre is nearest; displacement: the node
   bool has_at = false;
   std::string set;   // reaction: node set; displacement (without at): its nodes' mean
-  int component = 2; // reaction, displacement, opening: 0, 1, 2
+  int component = 2; // reaction, displacement, opening, platen: 0, 1, 2
   std::string load;  // load: name of the load
+  std::string platen; // platen, platen_displacement: name of the platen
   // opening and strain: the two ends, each the node nearest a point or a node set's mean.
   struct End {
     std::optional<Vec3> point;
@@ -143,6 +168,7 @@ struct CaseSpec {
   std::vector<FixedSpec> fixed;
   std::vector<VelocitySpec> velocities;
   std::vector<LoadSpec> loads;
+  std::vector<PlatenSpec> platens;
   std::vector<PrecrackSpec> precracks;
   double end_time = 0.0;
   double stop_displacement = 0.0; // m; 0: none

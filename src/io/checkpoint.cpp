@@ -109,6 +109,9 @@ std::string progress_bytes(const Progress& p) {
     put(out, e.state);
     put(out, e.step);
   }
+  put(out, static_cast<std::uint64_t>(p.platens.size()));
+  for (double v : p.platens)
+    put(out, v);
   return out;
 }
 
@@ -143,6 +146,12 @@ Progress read_progress(const Header& h, const std::string& path) {
       get(in, pos, e.step);
       p.events.push_back(e);
     }
+    get(in, pos, n);
+    for (std::uint64_t q = 0; q < n && pos < in.size(); ++q) {
+      double v = 0.0;
+      get(in, pos, v);
+      p.platens.push_back(v);
+    }
   } catch (const InputError&) {
     throw InputError(fmt::format("{}: truncated checkpoint (its progress ends early)", path));
   }
@@ -162,6 +171,9 @@ void check_resumes(const Progress& file, const Header& h, const Progress& body,
     throw InputError(fmt::format("{}: a checkpoint of a run with the bar law \"{}\"; this case "
                                  "uses \"{}\"",
                                  path, file.law, body.law));
+  if (file.platens.size() != body.platens.size())
+    throw InputError(fmt::format("{}: a checkpoint of a run with {} platens; this case has {}",
+                                 path, file.platens.size() / 6, body.platens.size() / 6));
   const auto names = [](const Progress& p) {
     std::string s;
     for (const Simulation::NamedArray& a : p.arrays)

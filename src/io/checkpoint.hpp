@@ -25,7 +25,9 @@
 namespace ldem::checkpoint {
 
 inline constexpr char kMagic[8] = {'L', 'D', 'E', 'M', 'C', 'K', 'P', 'T'};
-inline constexpr std::uint32_t kVersion = 7; // 7: the run's end and output intervals in its meta
+// 7: the run's end and output intervals in its meta; 8: platens (their friction in the ledger,
+// their places in the progress, the contact energy in the report)
+inline constexpr std::uint32_t kVersion = 8;
 inline constexpr std::uint64_t kHeaderBytes = 8 + 4 + 3 * 8;
 
 template <class T> void put(std::string& out, const T& v) {
@@ -79,6 +81,7 @@ struct Progress {
   std::string law; // the bar law's name
   std::vector<Simulation::NamedArray> arrays;
   std::vector<Event> events; // not yet written
+  std::vector<double> platens; // Simulation::platen_positions
   // Where array a starts, in doubles from the arrays' start, and the doubles of all arrays.
   std::uint64_t array_place(std::size_t a) const;
   std::uint64_t array_doubles() const { return array_place(arrays.size()); }
@@ -88,9 +91,9 @@ std::string progress_bytes(const Progress& p);
 // when the progress is truncated.
 Progress read_progress(const Header& h, const std::string& path);
 // Throws InputError naming `path` unless the checkpoint `file` (header h) can resume the body
-// `body` (this case's counts, dt, bar law and arrays; `file` read by read_progress): a body of
-// other node or bar counts, another time step, another bar law or other state arrays, or a
-// file whose length is not that of its arrays.
+// `body` (this case's counts, dt, bar law, arrays and platens; `file` read by read_progress): a
+// body of other node or bar counts, another time step, another bar law, other state arrays or
+// another number of platens, or a file whose length is not that of its arrays.
 void check_resumes(const Progress& file, const Header& h, const Progress& body,
                    const std::string& path);
 

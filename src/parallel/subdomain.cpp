@@ -293,6 +293,11 @@ Conditions subdomain_conditions(const Subdomain& sub, const Lattice& whole, cons
           weight.push_back(l.weight[q]);
       out.loads.push_back({std::move(set), l.force, l.scale, std::move(weight)});
     }
+  // The platens, and where the window is in the body (they test its nodes at their places in
+  // the body: the same numbers whatever the window).
+  out.platens = c.platens;
+  out.window_j = sub.y.w0;
+  out.window_k = sub.z.w0;
   return out;
 }
 
@@ -317,10 +322,13 @@ namespace {
 // outermost corner row and plane), all DOF held.
 Conditions with_ghosts(const Subdomain& sub, const Lattice& local, Conditions c) {
   NodeSet ghosts{"ghost nodes", {}};
+  c.not_owned.assign(local.num_nodes(), 0);
   for (index_t n = 0; n < local.num_nodes(); ++n) {
     const NodeAddress a = local.node_address(n);
-    if (!sub.owns(a.j + sub.y.w0, a.k + sub.z.w0, !a.centre))
+    if (!sub.owns(a.j + sub.y.w0, a.k + sub.z.w0, !a.centre)) {
       ghosts.nodes.push_back(n);
+      c.not_owned[n] = 1;
+    }
   }
   if (!ghosts.nodes.empty())
     c.fixed.push_back({std::move(ghosts), kDofAll});

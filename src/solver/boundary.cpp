@@ -67,7 +67,7 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
   if (core.layout.compact())
     std::fill(core.held.begin() + static_cast<std::ptrdiff_t>(core.layout.zero_slot),
               core.held.end(), kDofAll);
-  if (!core.cond.loads.empty()) {
+  if (!core.cond.loads.empty() || !core.cond.platens.empty()) {
     core.px.assign(core.layout.slot_count, 0.0);
     core.py.assign(core.layout.slot_count, 0.0);
     core.pz.assign(core.layout.slot_count, 0.0);
@@ -110,7 +110,7 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
   return held;
 }
 
-void apply_loads(SimulationCore& core, double t) {
+void apply_loads(SimulationCore& core, double t, bool always) {
   // Loads whose time functions give the values of the last step give the same forces: kept
   // (a constant body force on every node would otherwise cost a pass over the body each step).
   std::vector<double>& last = core.bc.load_scales;
@@ -123,7 +123,7 @@ void apply_loads(SimulationCore& core, double t) {
     else
       last[c] = s;
   }
-  if (same)
+  if (same && !always)
     return;
   for (const auto& slots : core.bc.load_slots)
     for (std::size_t q : slots)

@@ -27,6 +27,27 @@ inline constexpr bool kVectorKernel = true;
 inline constexpr bool kVectorKernel = false;
 #endif
 
+// A platen as the step applies it (contact.cpp): where it is, and its contacts.
+struct PlatenState {
+  Vec3 offset, previous; // its displacement at t_n and t_{n-1}
+  // The stretch of the sticking spring of each node in touch with friction, by node number
+  // (none for a frictionless platen), and the list the step being taken builds.
+  struct Stick {
+    index_t node;
+    double s[3];
+  };
+  std::vector<Stick> stick, next_stick;
+  // This step's touching nodes: slot, force on the node, u_n - u_{n-1} and the spring's energy.
+  struct Touch {
+    std::size_t slot, row; // its slot and node row
+    double f[3], du[3];
+    double energy;
+  };
+  std::vector<Touch> touches;
+  std::array<ExactSum, 3> force_sum; // the touches' forces added (this step's, at t_n)
+  Vec3 force;                        // and rounded
+};
+
 // The boundary conditions and loads as the step applies them (boundary.cpp).
 struct Boundary {
   // Slots of the nodes of each imposed velocity and each load.
@@ -51,6 +72,21 @@ struct Boundary {
   std::vector<double> load_scales;
   // The factors of the controlled velocities (Simulation::set_control_factors).
   std::vector<double> control_factors;
+  // The platens (Conditions::platens), and the terms of the step's report: the platens' work
+  // less the work of their contact forces on the body before t_n, and the springs' energy.
+  std::vector<PlatenState> platens;
+  ExactSum platen_half, contact_energy;
+  // What the platens test each step: runs of stored nodes along x (first slot and node, count,
+  // the first node's i plus 1/2 for centre rows, its y and z in the body), and per slot whether
+  // the node is one of the body's that this simulation owns (contact.cpp builds them).
+  struct ContactRun {
+    std::size_t q0;
+    index_t n0, count;
+    double i0, y, z;
+  };
+  std::vector<ContactRun> contact_runs;
+  std::vector<std::uint8_t> contactable;
+  std::vector<std::uint8_t> run_may_touch; // per run, this step's (scratch)
 };
 
 struct SimulationCore {
@@ -73,6 +109,9 @@ struct SimulationCore {
   AlignedVector<DofMask> held;        // DOF fixed, imposed or held by plane strain
   AlignedVector<double> px, py, pz;   // nodal loads at t_n (only with loads)
   std::vector<std::uint8_t> row_held; // per node row: some DOF is fixed or imposed
+  // Per node row, with platens: 1 if a load has a node in it, | 2 if a platen touches one of its
+  // nodes in this step (empty: every row is loaded when there are loads).
+  std::vector<std::uint8_t> row_loaded;
   Boundary bc;
 
   // The law's per-bar state arrays (LawKernels::state_arrays), the only per-bar state. The
@@ -162,8 +201,16 @@ private:
 // rows and their tables (boundary.cpp). Throws InputError for an empty set, a missing node or
 // a bad plane-strain axis.
 std::vector<DofMask> build_boundary(SimulationCore& core);
-// Nodal loads at time t into px, py, pz.
-void apply_loads(SimulationCore& core, double t);
+// Nodal loads at time t into px, py, pz; with `always`, set again even if their time
+// functions have not changed.
+void apply_loads(SimulationCore& core, double t, bool always = false);
+// The platens' contact forces at u_n added to px, py, pz (after apply_loads, which sets the
+// slots the last step's contacts took back to the loads alone), their friction's dissipation
+// added to the ledger and, with `report`, the report's terms (contact.cpp).
+void apply_platens(SimulationCore& core, double t, bool report);
+// After the node pass: the platens move to t_{n+1}; returns the step's platen work less the
+// work of the contact forces on the body, which the node pass booked as loads'.
+ExactSum finish_platens(SimulationCore& core, double t);
 // Imposed velocities at t_{n+1/2} and their reactions' work (into c.bc's sums).
 void apply_velocities(SimulationCore& core, double t, bool report);
 

@@ -605,10 +605,22 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
       const IntegrationConstants ic{dt, c1, c2, alpha};
       // (The rows' motion only matters to the fast path.)
       // (The nodes [from, to): the others' terms of the sums are zeros, which change no sum.)
+      // (A row whose nodes no load or platen touches takes the update without loads: the same
+      // bits, its loads being zeros.)
+      const bool loaded = core.row_loaded.empty() || core.row_loaded[r] != 0;
       const auto integrate = [&](auto held_c, auto motion_c) {
         constexpr bool H = decltype(held_c)::value, M = decltype(motion_c)::value;
         const index_t f = from;
         const auto at = [f](const double* p) { return p ? p + f : p; };
+        if constexpr (Loads)
+          if (!loaded) {
+            integrate_row<Damped, false, Report, H, M>(
+                to - from, ic, H ? free_x + f : nullptr, H ? free_y + f : nullptr,
+                H ? free_z + f : nullptr, im + f, m + f, fx + f, fy + f, fz + f, fw + f, nullptr,
+                nullptr, nullptr, ux + f, uy + f, uz + f, wx + f, wy + f, wz + f, fd + f, damping,
+                load_mid, load_half, kinetic, motion);
+            return;
+          }
         integrate_row<Damped, Loads, Report, H, M>(
             to - from, ic, H ? free_x + f : nullptr, H ? free_y + f : nullptr,
             H ? free_z + f : nullptr, im + f, m + f, fx + f, fy + f, fz + f, fw + f, at(px), at(py),

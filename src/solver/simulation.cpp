@@ -96,6 +96,23 @@ void SimulationCore::forget_motion(index_t first, index_t count) {
   });
 }
 
+StableStep with_platens(StableStep stable, const Conditions& conditions) {
+  // A platen's springs add kappa m to a touching node's stiffness along each direction
+  // (normal and sticking springs alike), so M^-1/2 K_c M^-1/2 is at most kappa on every DOF,
+  // and by Weyl's inequality omega_max^2 grows by at most the sum of the platens' kappa (a node
+  // may touch several).
+  double kappa = 0.0;
+  for (const Platen& p : conditions.platens)
+    kappa += p.kappa;
+  if (kappa > 0.0) {
+    stable.omega_max = std::sqrt(stable.omega_max * stable.omega_max + kappa);
+    stable.omega_bound = std::sqrt(stable.omega_bound * stable.omega_bound + kappa);
+    stable.dt = 2.0 / stable.omega_max;
+    stable.dt_bound = 2.0 / stable.omega_bound;
+  }
+  return stable;
+}
+
 Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
                        SolverOptions options, std::vector<index_t> precracked)
     : core_(std::make_unique<SimulationCore>(std::move(lattice), std::move(table),
@@ -130,9 +147,10 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   }
   for (AlignedVector<double>* u : {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz})
     u->assign(slots, 0.0);
+  set_platen_stiffness(c.table.ranges().E[1], c.table.ranges().rho[0]);
   const std::vector<DofMask> held = build_boundary(c);
   if (!c.opt.defer_time_step) {
-    c.stable = compute_stable_step(c.lat, c.table, mass, held);
+    c.stable = with_platens(compute_stable_step(c.lat, c.table, mass, held), c.cond);
     c.dt = time_step_by_rule(c.opt.step, c.stable, c.table.ranges().E[1], c.table.ranges().rho[0],
                              c.lat.L(), c.opt.damping);
   }
@@ -415,11 +433,40 @@ std::vector<Simulation::NamedArray> Simulation::state_arrays() const {
     out.push_back({name, false});
   for (const StateArray& a : law_->state_arrays)
     out.push_back({std::string(a.name), true});
+  // The sticking springs' stretch of each frictional platen, per node (0 where none).
+  for (const Platen& p : core_->cond.platens)
+    if (p.friction > 0.0)
+      for (const char* e : {"x", "y", "z"})
+        out.push_back({"platen." + p.name + ".stretch." + e, false});
   return out;
 }
 
+namespace {
+// The frictional platen and the component of state array `array` past the law's arrays.
+std::pair<std::size_t, int> stretch_array(const Conditions& cond, std::size_t array) {
+  for (std::size_t p = 0; p < cond.platens.size(); ++p)
+    if (cond.platens[p].friction > 0.0) {
+      if (array < 3)
+        return {p, static_cast<int>(array)};
+      array -= 3;
+    }
+  throw std::logic_error("state array out of range");
+}
+} // namespace
+
 void Simulation::append_state(std::size_t array, index_t first, index_t count,
                               std::vector<double>& out) const {
+  const std::size_t laws = std::size(kNodeArrays) + law_->state_arrays.size();
+  if (array >= laws) {
+    const auto [p, e] = stretch_array(core_->cond, array - laws);
+    const std::size_t at = out.size();
+    out.resize(at + count, 0.0);
+    if (p < core_->bc.platens.size())
+      for (const PlatenState::Stick& st : core_->bc.platens[p].stick)
+        if (st.node >= first && st.node < first + count)
+          out[at + (st.node - first)] = st.s[e];
+    return;
+  }
   if (array >= std::size(kNodeArrays)) {
     append_bar_states(array - std::size(kNodeArrays), first, count, out);
     return;
@@ -432,6 +479,24 @@ void Simulation::append_state(std::size_t array, index_t first, index_t count,
 }
 
 void Simulation::assign_state(std::size_t array, index_t first, index_t count, const double* in) {
+  const std::size_t laws = std::size(kNodeArrays) + law_->state_arrays.size();
+  if (array >= laws) {
+    const auto [p, e] = stretch_array(core_->cond, array - laws);
+    std::vector<PlatenState>& platens = core_->bc.platens;
+    platens.resize(core_->cond.platens.size());
+    std::vector<PlatenState::Stick>& stick = platens[p].stick;
+    for (index_t i = 0; i < count; ++i) {
+      const index_t node = first + i;
+      auto it = std::lower_bound(stick.begin(), stick.end(), node,
+                                 [](const PlatenState::Stick& a, index_t n) { return a.node < n; });
+      if (it != stick.end() && it->node == node)
+        it->s[e] = in[i];
+      else if (in[i] != 0.0)
+        stick.insert(it, {node, {e == 0 ? in[i] : 0.0, e == 1 ? in[i] : 0.0,
+                                 e == 2 ? in[i] : 0.0}});
+    }
+    return;
+  }
   if (array >= std::size(kNodeArrays)) {
     assign_bar_states(array - std::size(kNodeArrays), first, count, in);
     return;
@@ -459,6 +524,53 @@ std::span<double> Simulation::bar_state_array(std::size_t array) {
   return core_->states[array];
 }
 
+Vec3 Simulation::platen_force(std::size_t p) const {
+  return p < core_->bc.platens.size() ? core_->bc.platens[p].force : Vec3{};
+}
+
+Vec3 Simulation::platen_offset(std::size_t p) const {
+  return p < core_->bc.platens.size() ? core_->bc.platens[p].offset : Vec3{};
+}
+
+std::size_t Simulation::platen_contacts(std::size_t p) const {
+  return p < core_->bc.platens.size() ? core_->bc.platens[p].touches.size() : 0;
+}
+
+const std::array<ExactSum, 3>& Simulation::platen_force_sum(std::size_t p) const {
+  static const std::array<ExactSum, 3> none{};
+  return p < core_->bc.platens.size() ? core_->bc.platens[p].force_sum : none;
+}
+
+const ExactSum& Simulation::report_contact() const {
+  return core_->bc.contact_energy;
+}
+
+void Simulation::set_platen_stiffness(double E_max, double rho_min) {
+  const double L = core_->lat.L();
+  for (Platen& p : core_->cond.platens)
+    p.kappa = 4.0 * p.penalty * E_max / (rho_min * L * L);
+}
+
+std::vector<double> Simulation::platen_positions() const {
+  std::vector<double> out;
+  for (std::size_t p = 0; p < core_->cond.platens.size(); ++p) {
+    const Vec3 a = platen_offset(p),
+               b = p < core_->bc.platens.size() ? core_->bc.platens[p].previous : Vec3{};
+    out.insert(out.end(), {a.x, a.y, a.z, b.x, b.y, b.z});
+  }
+  return out;
+}
+
+void Simulation::set_platen_positions(std::span<const double> positions) {
+  std::vector<PlatenState>& platens = core_->bc.platens;
+  platens.resize(core_->cond.platens.size());
+  for (std::size_t p = 0; p < platens.size() && 6 * p + 5 < positions.size(); ++p) {
+    const double* v = positions.data() + 6 * p;
+    platens[p].offset = {v[0], v[1], v[2]};
+    platens[p].previous = {v[3], v[4], v[5]};
+  }
+}
+
 void Simulation::restore_progress(std::uint64_t step, const Ledger::State& ledger,
                                   const EnergyReport& report, std::vector<Event> pending) {
   SimulationCore& c = *core_;
@@ -475,20 +587,24 @@ void Simulation::step(bool report) {
   SimulationCore& c = *core_;
   const double t = time();
   const bool energies = report || c.step == 0;
-  if (!c.cond.loads.empty())
+  if (!c.cond.platens.empty())
+    apply_platens(c, t, energies);
+  else if (!c.cond.loads.empty())
     apply_loads(c, t);
   for (std::size_t v = 0; v < c.cond.velocities.size(); ++v) {
     const auto& nodes = c.cond.velocities[v].set.nodes;
     for (std::size_t q = 0; q < nodes.size(); ++q)
       c.bc.imposed_v_old[v][q] = half_step_velocity(nodes[q]);
   }
-  const bool damped = c.opt.damping > 0.0, loads = !c.cond.loads.empty();
+  const bool damped = c.opt.damping > 0.0,
+             loads = !c.cond.loads.empty() || !c.cond.platens.empty();
   // A law with a fatigue life counts the strain at u_n (a distributed run's halo is current).
   if (law_->count_cycles)
     law_->count_cycles(c);
   // The law's walk, in the specialisation of the node update for this step.
   law_->advance(c, damped, loads, energies);
   apply_velocities(c, t, energies);
+  const ExactSum platen_mid = c.cond.platens.empty() ? ExactSum{} : finish_platens(c, t);
 
   // The step's work and damping, row by row and DOF by DOF, added exactly (Ledger).
   // (Without damping or loads the rows' terms are zeros, which add nothing.)
@@ -512,14 +628,18 @@ void Simulation::step(bool report) {
       c.ledger.set_initial(elastic + kinetic.value());
     c.report_work = c.ledger.state().work;
     c.report_work.add(work_half);
+    if (!c.cond.platens.empty())
+      c.report_work.add(c.bc.platen_half);
     c.report_damping2 = Ledger::twice_damping_at_report(c.ledger.state(), damping);
     c.report =
         energy_report(t, c.report_work.value(), elastic, kinetic.value(), damage,
                       0.5 * c.report_damping2.value(), c.ledger.initial(),
                       balance_floor(c.table.ranges().E[1], c.table.ranges().e_p[1], c.lat.volume()),
-                      bars.fatigue);
+                      bars.fatigue, c.bc.contact_energy.value(),
+                      c.ledger.state().friction.value());
   }
   c.ledger.work().add(load_mid);
+  c.ledger.work().add(platen_mid);
   c.ledger.damping().add(damping);
   c.ux.swap(c.wx);
   c.uy.swap(c.wy);

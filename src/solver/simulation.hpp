@@ -23,6 +23,7 @@
 #include "solver/stable_step.hpp"
 #include "solver/time_function.hpp"
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -62,11 +63,39 @@ struct NodalLoad {
   double weight_of(std::size_t i) const { return weight.empty() ? 1.0 : weight[i]; }
 };
 
+// A rigid platen: a plane, or a cylinder (a roller support, an indenter), that moves at
+// velocity * scale(t) without turning and pushes back the nodes of the body that pass its
+// surface, each with a penalty spring k = kappa m (m the node's lumped mass) along the
+// surface's normal and, with friction, a tangential spring of the same k whose force is capped
+// at friction times the normal force (Coulomb; the spring's stretch is the node's state while
+// it touches). docs/model.md, "Platens".
+struct Platen {
+  std::string name;
+  enum class Kind { Plane, Cylinder } kind = Kind::Plane;
+  Vec3 point;  // at t = 0: plane, a point of its face; cylinder, a point of its axis
+  Vec3 normal; // plane: unit normal of its face, towards the body; cylinder: unit axis
+  double radius = 0.0;
+  Vec3 velocity;
+  TimeFunction scale;
+  double friction = 0.0; // Coulomb coefficient
+  // The penalty: k = penalty E L on a node of a body face (E the body's largest), that is
+  // kappa = 4 penalty E / (rho L^2) per unit mass (rho the smallest); the Simulation sets kappa.
+  double penalty = 1.0;
+  double kappa = 0.0; // [1/s^2]
+};
+
 struct Conditions {
   std::vector<FixedDofs> fixed;
   std::vector<ImposedVelocity> velocities;
   std::vector<NodalLoad> loads;
+  std::vector<Platen> platens;
   int plane_strain_axis = -1; // 0, 1, 2: that displacement is zero at every node
+  // Per node, 1 where another process owns it (a distributed run's ghost node; empty: all
+  // nodes are this simulation's): the platens leave it to its owner. And where the lattice's
+  // rows j = 0 and planes k = 0 are in the body (a distributed run's window): the platens are
+  // placed in the body's coordinates.
+  std::vector<std::uint8_t> not_owned;
+  index_t window_j = 0, window_k = 0;
 };
 
 // Lumped masses: each module gives rho L^3 / 2 to its centre node and rho L^3 / 16 to each
@@ -119,6 +148,10 @@ struct SolverOptions {
 // (1 - a dt / 2) / (1 + a dt / 2) would turn negative: motion reversed each step).
 double time_step_by_rule(const TimeStep& step, const StableStep& stable, double E_max,
                          double rho_min, double L, double damping = 0.0);
+
+// The stable step with the platens' penalty springs: omega_max^2 and its bound raised by the
+// sum of their kappa (Weyl's inequality), dt and its bound from them.
+StableStep with_platens(StableStep stable, const Conditions& conditions);
 
 struct Event {
   index_t bar;
@@ -177,6 +210,25 @@ public:
   // next steps: a controller outside the step sets them before each step (app/run_body.hpp).
   // Before the first call they are 0.
   void set_control_factors(std::span<const double> factors);
+
+  // Platen p (Conditions::platens): the force of its contacts on the body at the start of the
+  // last step [N], its displacement from where it was at t = 0 [m], and the nodes it touched
+  // in the last step.
+  Vec3 platen_force(std::size_t p) const;
+  Vec3 platen_offset(std::size_t p) const;
+  std::size_t platen_contacts(std::size_t p) const;
+  // The platens' displacements at t_n and t_{n-1}, 6 doubles per platen, as a checkpoint holds
+  // them; and set from such a list (its size checked by the caller).
+  std::vector<double> platen_positions() const;
+  void set_platen_positions(std::span<const double> positions);
+  // The platens' force on the nodes this simulation owns, component by component, exactly
+  // (what a distributed run adds over its processes); and the energy their springs hold at the
+  // last report.
+  const std::array<ExactSum, 3>& platen_force_sum(std::size_t p) const;
+  const ExactSum& report_contact() const;
+  // The platens' kappa from the body's largest E and smallest density (a distributed run's
+  // window takes the body's, not its own), before the time step is set.
+  void set_platen_stiffness(double E_max, double rho_min);
 
   // Initial velocities (before the first step), e.g. a ramp; taken as v_{-1/2}.
   void set_velocity(const std::function<Vec3(Vec3 X)>& v_of_X);

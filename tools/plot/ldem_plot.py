@@ -379,6 +379,11 @@ def energy_png(d):
     fatigue = "fatigue_dissipated" in rows[0]
     if fatigue:
         labels["fatigue_dissipated"] = "fatigue"
+    # Platens' columns: their springs' energy and their friction's dissipation.
+    platens = "contact_energy" in rows[0]
+    if platens:
+        labels["contact_energy"] = "contact"
+        labels["friction_dissipated"] = "friction"
     for key, lab in labels.items():
         ax.plot(t, [float(r[key]) for r in rows], label=lab)
     held = [k for k in labels if k != "external_work"]
@@ -390,7 +395,8 @@ def energy_png(d):
     ax.grid(alpha=0.3)
     ax2.semilogy(t, [max(float(r["balance_error"]), 1e-16) for r in rows], "k-", lw=0.8)
     ax2.set_ylabel("relative\nbalance error")
-    ax2.set_title("|W + E0 - (U + K + D + Dc{})| / (W + E0)".format(" + F" if fatigue else ""),
+    ax2.set_title("|W + E0 - (U + K + D + Dc{}{})| / (W + E0)".format(
+        " + F" if fatigue else "", " + Ec + Df" if platens else ""),
                   fontsize=8)
     ax2.set_xlabel("time [s]")
     ax2.grid(alpha=0.3)
@@ -410,7 +416,7 @@ def probes_png(d, case):
         return
     kinds = {p["name"]: p.get("kind", "") for p in case.get("probe", [])}
     unit = {"reaction": "N", "load": "N", "bar_force": "N", "displacement": "m", "opening": "m",
-            "strain": "-"}
+            "strain": "-", "platen": "N", "platen_displacement": "m"}
     t = [float(r["time"]) * 1e3 for r in rows]
     fig, axes = plt.subplots(len(names), 1, figsize=(7, 1.2 + 1.8 * len(names)), sharex=True,
                              squeeze=False)
@@ -423,8 +429,9 @@ def probes_png(d, case):
     save(fig, os.path.join(d, "probes.png"))
     # A laboratory's curve: the first force probe against the first gauge (load-CMOD,
     # load-deflection, stress-strain), in response.png.
-    forces = [n for n in names if kinds.get(n) in ("reaction", "load")]
-    gauges = [n for n in names if kinds.get(n) in ("opening", "displacement", "strain")]
+    forces = [n for n in names if kinds.get(n) in ("reaction", "load", "platen")]
+    gauges = [n for n in names if kinds.get(n) in ("opening", "displacement", "strain",
+                                                    "platen_displacement")]
     if forces and gauges:
         f, g = forces[0], gauges[0]
         scale, gunit = (1e3, "mm") if kinds[g] != "strain" else (1e6, "1e-6")
