@@ -300,7 +300,8 @@ platen = "upper"
     o.out_dir = (dir / "out").string();
     EXPECT_EQ(run_command((dir / "case.toml").string(), o), 0);
     std::vector<double> stress;
-    for (double f : testing::csv_columns(dir / "out" / "probes.csv").at("load"))
+    const auto columns = testing::csv_columns(dir / "out" / "probes.csv");
+    for (double f : columns.at("load"))
       stress.push_back(-f / (0.02 * 0.02)); // Pa over the 20 x 20 mm section
     fs::remove_all(dir);
     return stress;
