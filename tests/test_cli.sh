@@ -302,12 +302,14 @@ sed 's/^energy_every = 50/energy_every = 50\nvtu_arrays = ["displacement", "dama
 sed 's/^energy_every = 50/energy_every = 50\nvtu_arrays = ["displacement", "dmg"]/' "$GOOD" >"$T/arrays_bad.toml"
 "$LDEM" run "$T/arrays_bad.toml" --out "$T/arrays_bad" >/dev/null 2>"$T/stderr"
 rc=$?
-[ $rc -eq 2 ] && [ ! -e "$T/arrays_bad" ] && grep -q 'arrays_bad.toml:[0-9]*: output.vtu_arrays: expected names among "displacement", "velocity", "stress", "damage", "state", "axial_force", "strain", "E", "Gf", "e_p", "e_r" (this law.s), got "dmg"' "$T/stderr" && ok || bad "vtu_arrays with a bad name: rc $rc, $(cat "$T/stderr")"
+[ $rc -eq 2 ] && [ ! -e "$T/arrays_bad" ] && grep -q 'arrays_bad.toml:[0-9]*: output.vtu_arrays: expected names among "displacement", "velocity", "stress", "node_strain", "damage", "state", "axial_force", "strain", "E", "Gf", "e_p", "e_r" (this law.s), got "dmg"' "$T/stderr" && ok || bad "vtu_arrays with a bad name: rc $rc, $(cat "$T/stderr")"
 
-# The stress at the nodes, named: a symmetric tensor per point, which VTK reads.
-sed 's/^energy_every = 50/energy_every = 50\nvtu_arrays = ["damage", "stress"]/' "$T/long.toml" >"$T/stress.toml"
+# The stress and the strain at the nodes, named: a symmetric tensor per point each, which VTK
+# reads.
+sed 's/^energy_every = 50/energy_every = 50\nvtu_arrays = ["damage", "stress", "node_strain"]/' "$T/long.toml" >"$T/stress.toml"
 "$LDEM" run "$T/stress.toml" --out "$T/stress" --no-plot >/dev/null 2>"$T/stderr" &&
   grep -q 'Name="stress" NumberOfComponents="6"' "$T/stress/lattice_000001.vtu" &&
+  grep -q 'Name="node_strain" NumberOfComponents="6"' "$T/stress/lattice_000001.vtu" &&
   /usr/bin/python3 "$SRC/tests/check_outputs.py" "$T/stress" >/dev/null && ok ||
   bad "vtu_arrays with stress: $(cat "$T/stderr")"
 

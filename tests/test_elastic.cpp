@@ -131,6 +131,57 @@ TEST(Elastic, NodeStressesAreTheIsotropicStressOfAnAffineStrain) {
           << "node " << n << ", component " << c;
 }
 
+// The snapshots' strain at the nodes (node_strains): a module's strain is the volume mean of
+// the gradient of its corners' trilinear interpolation, symmetrised, so under an affine field
+// u = eps X every module's, and so every node's, is eps to rounding, on the faces and corners of
+// the body too. Under the multilinear field u = (a y z, b x z, c x y), which trilinear
+// interpolation holds exactly, a module's strain is the field's at its centre: e_xy =
+// (a z + b z) / 2, e_yz = (b x + c x) / 2, e_xz = (a y + c y) / 2, the diagonal 0. An interior
+// corner node takes the mean over its 8 modules, whose centres lie at its coordinates +- L/2:
+// the field's strain is linear, so the mean is the field's at the node, to rounding.
+TEST(Elastic, NodeStrainsAreTheMeanGradientOfTheModules) {
+  const double L = 0.01;
+  const Lattice lat(4, 3, 5, L);
+  const double eps[3][3] = {
+      {2e-6, 0.7e-6, -0.4e-6}, {0.2e-6, -1e-6, 0.9e-6}, {-0.8e-6, 0.3e-6, 1.5e-6}};
+  const int p_of[6] = {0, 1, 2, 0, 1, 0}, q_of[6] = {0, 1, 2, 1, 2, 2};
+  std::vector<Vec3> u(lat.num_nodes());
+  for (index_t n = 0; n < lat.num_nodes(); ++n) {
+    const Vec3 X = lat.position(n);
+    u[n] = {eps[0][0] * X.x + eps[0][1] * X.y + eps[0][2] * X.z,
+            eps[1][0] * X.x + eps[1][1] * X.y + eps[1][2] * X.z,
+            eps[2][0] * X.x + eps[2][1] * X.y + eps[2][2] * X.z};
+  }
+  std::vector<double> strain;
+  node_strains(lat, u, strain);
+  ASSERT_EQ(strain.size(), 6 * std::size_t{lat.num_nodes()});
+  for (index_t n = 0; n < lat.num_nodes(); ++n)
+    for (int c = 0; c < 6; ++c)
+      EXPECT_NEAR(strain[6 * std::size_t{n} + c],
+                  0.5 * (eps[p_of[c]][q_of[c]] + eps[q_of[c]][p_of[c]]), 1e-15)
+          << "node " << n << ", component " << c;
+  const double a = 3e-5, b = -2e-5, c = 4e-5; // [1/m]
+  for (index_t n = 0; n < lat.num_nodes(); ++n) {
+    const Vec3 X = lat.position(n);
+    u[n] = {a * X.y * X.z, b * X.x * X.z, c * X.x * X.y};
+  }
+  node_strains(lat, u, strain);
+  for (index_t k = 1; k < lat.nz(); ++k)
+    for (index_t j = 1; j < lat.ny(); ++j)
+      for (index_t i = 1; i < lat.nx(); ++i) {
+        const index_t n = lat.corner(i, j, k);
+        const Vec3 X = lat.position(n);
+        const double expected[6] = {0, 0, 0, 0.5 * (a + b) * X.z, 0.5 * (b + c) * X.x,
+                                    0.5 * (a + c) * X.y};
+        for (int e = 0; e < 6; ++e)
+          EXPECT_NEAR(strain[6 * std::size_t{n} + e], expected[e], 1e-15)
+              << "corner " << i << " " << j << " " << k << ", component " << e;
+      }
+  // A centre node: its module's, the field's at the centre.
+  const Vec3 X = lat.position(lat.centre(1, 2, 3));
+  EXPECT_NEAR(strain[6 * std::size_t{lat.centre(1, 2, 3)} + 3], 0.5 * (a + b) * X.z, 1e-15);
+}
+
 // A long prism 1 x 1 x N with the lateral DOF fixed is in uniaxial strain, so long waves
 // travel at c_p = sqrt(C1111 / rho) = sqrt(1.2 E / rho) (C1111 above). A Gaussian initial
 // displacement splits into two pulses; the centroid of the one moving to +z must advance

@@ -69,6 +69,37 @@ Simulation make_shaped(Lattice lat, const MaterialSpec& m, Conditions c = {}) {
   return Simulation(std::move(lat), std::move(table), std::move(c), SolverOptions{});
 }
 
+// The strain at the nodes of a shaped body under an affine field u = eps X: every present
+// module's mean gradient is eps, so every present node's strain, the re-entrant edge's
+// included, is eps's symmetric part to rounding; an absent module's centre carries nothing.
+TEST(ShapedBody, NodeStrainsOfAnAffineFieldAreItsStrainAtEveryPresentNode) {
+  const Lattice lat = l_shape(0.01);
+  const double eps[3][3] = {{1e-6, 2e-6, 0.0}, {-1e-6, 0.5e-6, 0.3e-6}, {0.6e-6, 0.1e-6, -2e-6}};
+  const int p_of[6] = {0, 1, 2, 0, 1, 0}, q_of[6] = {0, 1, 2, 1, 2, 2};
+  std::vector<Vec3> u(lat.num_nodes());
+  for (index_t n = 0; n < lat.num_nodes(); ++n) {
+    const Vec3 X = lat.position(n);
+    u[n] = {eps[0][0] * X.x + eps[0][1] * X.y + eps[0][2] * X.z,
+            eps[1][0] * X.x + eps[1][1] * X.y + eps[1][2] * X.z,
+            eps[2][0] * X.x + eps[2][1] * X.y + eps[2][2] * X.z};
+  }
+  std::vector<double> strain;
+  node_strains(lat, u, strain);
+  int present = 0;
+  for (index_t n = 0; n < lat.num_nodes(); ++n) {
+    if (!lat.node_present(n))
+      continue;
+    ++present;
+    for (int c = 0; c < 6; ++c)
+      EXPECT_NEAR(strain[6 * std::size_t{n} + c],
+                  0.5 * (eps[p_of[c]][q_of[c]] + eps[q_of[c]][p_of[c]]), 1e-15)
+          << "node " << n << ", component " << c;
+  }
+  EXPECT_GT(present, 50);
+  for (int c = 0; c < 6; ++c)
+    EXPECT_EQ(strain[6 * std::size_t{lat.centre(3, 1, 3)} + c], 0.0);
+}
+
 // The stress at the nodes shares every bar's virial among the present modules that have it
 // (an edge's among those sharing it, a centre bar's between its two modules), and a centre
 // node carries its module's stress: so the centre nodes' stresses times L^3 add up to the whole

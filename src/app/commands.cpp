@@ -188,23 +188,6 @@ bool agreed(const std::function<void()>& setup) {
   return false;
 }
 
-// What a run across processes cannot do yet: compressed snapshots (their blocks would span the
-// processes' parts). Throws InputError naming the case's line.
-void check_distributable(const BuiltCase& c, const std::string& path) {
-  if (process_count() > 1 && c.spec.output.vtu && c.spec.output.vtu_zlib)
-    throw InputError(located(c.spec, path,
-                             "output.vtu_compression: \"zlib\" snapshots are written by one "
-                             "process only for now; run without mpirun, or set "
-                             "vtu_compression = \"none\""));
-  const auto& arrays = c.spec.output.vtu_arrays;
-  if (process_count() > 1 && c.spec.output.vtu &&
-      std::find(arrays.begin(), arrays.end(), "stress") != arrays.end())
-    throw InputError(located(c.spec, path,
-                             "output.vtu_arrays: \"stress\" is written by one process only for "
-                             "now (a node's stress needs every module around it); run without "
-                             "mpirun, or leave \"stress\" out"));
-}
-
 // The body of a run: the case's Simulation, or with several processes a subdomain on each (the
 // processes agree on whether it could be built).
 std::unique_ptr<RunBody> make_body(BuiltCase& c, ProcessGrid asked) {
@@ -234,7 +217,6 @@ int run_command(const std::string& path, const RunOptions& o) {
   // the folder; the others only what their subdomains need.
   if (!agreed([&] {
         c = build_case(path, o.adjust, process_count() == 1);
-        check_distributable(c, path);
         if (process_count() > 1) // a body too thin to split is refused before any output
           try {
             grid = resolve_grid(c.lattice->ny(), c.lattice->nz(), process_count(),
@@ -380,10 +362,7 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
   st.end_time = options[5];
   st.energy_every = static_cast<std::uint64_t>(options[6]);
   st.vtu_every = static_cast<std::uint64_t>(options[7]);
-  if (!agreed([&] {
-        c = build_case(case_path, nullptr, process_count() == 1);
-        check_distributable(c, case_path);
-      }))
+  if (!agreed([&] { c = build_case(case_path, nullptr, process_count() == 1); }))
     return 2;
   const std::unique_ptr<RunBody> body = make_body(c, {grid_y, grid_z});
   if (!body)

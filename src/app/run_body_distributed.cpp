@@ -467,7 +467,8 @@ int DistributedBody::max_over_processes(int value) const {
 }
 
 void DistributedBody::prepare_snapshots() {
-  vtu_ = std::make_unique<SubdomainVtuWriter>(*run_, lattice(), c_.spec.output.vtu_arrays);
+  vtu_ = std::make_unique<SubdomainVtuWriter>(*run_, lattice(), c_.spec.output.vtu_arrays,
+                                              c_.spec.output.vtu_zlib);
 }
 
 void DistributedBody::write_snapshot(const std::string& path) {

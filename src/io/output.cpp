@@ -190,8 +190,8 @@ PresentRanks::PresentRanks(const Lattice& lat) {
 }
 
 std::vector<std::string> vtu_array_names(std::span<const StateArray> law_states) {
-  std::vector<std::string> names = {"displacement", "velocity", "stress", "damage",
-                                    "state",        "axial_force", "strain"};
+  std::vector<std::string> names = {"displacement", "velocity", "stress",      "node_strain",
+                                    "damage",       "state",    "axial_force", "strain"};
   for (const StateArray& a : law_states)
     if (a.in_snapshots)
       names.emplace_back(a.name);
@@ -200,16 +200,15 @@ std::vector<std::string> vtu_array_names(std::span<const StateArray> law_states)
   return names;
 }
 
-std::string zlib_blocks(const void* data, std::uint64_t bytes) {
-  constexpr std::uint64_t kBlock = 32768; // VTK's own block size
-  const std::uint64_t n = (bytes + kBlock - 1) / kBlock;
+std::vector<std::string> zlib_compress_blocks(const void* data, std::uint64_t bytes) {
+  const std::uint64_t n = (bytes + kZlibBlock - 1) / kZlibBlock;
   std::vector<std::string> blocks(n);
   const auto* in = static_cast<const Bytef*>(data);
   bool failed = false;
 #pragma omp parallel for schedule(dynamic) reduction(|| : failed)
   for (std::int64_t k = 0; k < static_cast<std::int64_t>(n); ++k) {
-    const auto first = static_cast<std::uint64_t>(k) * kBlock;
-    const uLong length = static_cast<uLong>(std::min(kBlock, bytes - first));
+    const auto first = static_cast<std::uint64_t>(k) * kZlibBlock;
+    const uLong length = static_cast<uLong>(std::min(kZlibBlock, bytes - first));
     uLongf stored = compressBound(length);
     std::string& out = blocks[static_cast<std::size_t>(k)];
     out.resize(stored);
@@ -219,10 +218,21 @@ std::string zlib_blocks(const void* data, std::uint64_t bytes) {
   }
   if (failed)
     throw std::runtime_error("zlib could not compress a snapshot's array");
-  std::vector<std::uint64_t> head = {n, kBlock, bytes % kBlock};
+  return blocks;
+}
+
+std::string zlib_header(std::uint64_t bytes, const std::vector<std::uint64_t>& sizes) {
+  std::vector<std::uint64_t> head = {sizes.size(), kZlibBlock, bytes % kZlibBlock};
+  head.insert(head.end(), sizes.begin(), sizes.end());
+  return {reinterpret_cast<const char*>(head.data()), head.size() * sizeof(std::uint64_t)};
+}
+
+std::string zlib_blocks(const void* data, std::uint64_t bytes) {
+  const std::vector<std::string> blocks = zlib_compress_blocks(data, bytes);
+  std::vector<std::uint64_t> sizes;
   for (const std::string& b : blocks)
-    head.push_back(b.size());
-  std::string s(reinterpret_cast<const char*>(head.data()), head.size() * sizeof(std::uint64_t));
+    sizes.push_back(b.size());
+  std::string s = zlib_header(bytes, sizes);
   for (const std::string& b : blocks)
     s += b;
   return s;
@@ -259,9 +269,11 @@ VtuLayout vtu_layout(index_t nn, index_t nb, const Simulation& sim, bool ids,
   s += "<PointData Vectors=\"displacement\">\n";
   tag(VtuLayout::Displacement, "Float32", "displacement", 3, 3 * fn);
   tag(VtuLayout::Velocity, "Float32", "velocity", 3, 3 * fn);
-  // (The stress only when named: it is computed from every bar at each snapshot.)
+  // (The stress and strain only when named: computed from every bar or node at each snapshot.)
   if (std::find(arrays.begin(), arrays.end(), "stress") != arrays.end())
     tag(VtuLayout::Stress, "Float32", "stress", 6, 6 * fn);
+  if (std::find(arrays.begin(), arrays.end(), "node_strain") != arrays.end())
+    tag(VtuLayout::NodeStrain, "Float32", "node_strain", 6, 6 * fn);
   if (ids)
     tag(VtuLayout::NodeId, "Int32", "node", 1, fn);
   s += "</PointData>\n<CellData Scalars=\"damage\">\n";
@@ -324,20 +336,47 @@ void keep_present(std::vector<T>& v, const std::vector<index_t>& ranks, std::siz
 
 } // namespace
 
-void node_stresses(const Lattice& lat, const std::vector<Vec3>& u, const std::vector<double>& force,
-                   std::vector<double>& out) {
+namespace {
+
+// Calls visit(i, j, k, m) for every present module of `box` (m: its number), shared by the
+// threads by rows along x.
+template <class Visit> void for_each_module(const Lattice& lat, ModuleBox box, Visit&& visit) {
+  const index_t nx = lat.nx();
+  const index_t j0 = box.j0, j1 = std::min(box.j1, lat.ny());
+  const index_t k0 = box.k0, k1 = std::min(box.k1, lat.nz());
+  if (j1 <= j0 || k1 <= k0)
+    return;
+  const auto rows = static_cast<std::int64_t>(j1 - j0) * (k1 - k0);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t r = 0; r < rows; ++r) {
+    const auto j = static_cast<index_t>(j0 + r % (j1 - j0)),
+               k = static_cast<index_t>(k0 + r / (j1 - j0));
+    for (index_t i = 0; i < nx; ++i)
+      if (lat.module_present(i, j, k))
+        visit(i, j, k, i + std::size_t{nx} * (j + std::size_t{lat.ny()} * k));
+  }
+}
+
+} // namespace
+
+void module_stresses(const Lattice& lat, const std::vector<Vec3>& u,
+                     const std::vector<double>& force, std::vector<double>& module,
+                     ModuleBox box) {
   const index_t nx = lat.nx(), ny = lat.ny(), nz = lat.nz();
-  const double inv_volume = 1.0 / (lat.L() * lat.L() * lat.L());
-  // Each present module's stress, summed over its bars in a fixed order (one writer each).
-  std::vector<double> module(6 * lat.num_modules(), 0.0);
+  const double L = lat.L(), inv_volume = 1.0 / (L * L * L);
   const auto add_bar = [&](index_t b, double w, double* s) {
     const double F = force[b];
     if (F == 0.0)
       return;
     const auto [a, c] = lat.bar_nodes(b);
-    const Vec3 xa = lat.position(a), xc = lat.position(c);
-    const double d[3] = {xc.x - xa.x + u[c].x - u[a].x, xc.y - xa.y + u[c].y - u[a].y,
-                         xc.z - xa.z + u[c].z - u[a].z};
+    // The bar's reference vector from the nodes' indices (the same numbers in any window of
+    // the body), plus the displacements' difference.
+    const NodeAddress na = lat.node_address(a), nc = lat.node_address(c);
+    const double shift = (nc.centre ? 0.5 : 0.0) - (na.centre ? 0.5 : 0.0);
+    const double d[3] = {
+        (static_cast<double>(nc.i) - static_cast<double>(na.i) + shift) * L + (u[c].x - u[a].x),
+        (static_cast<double>(nc.j) - static_cast<double>(na.j) + shift) * L + (u[c].y - u[a].y),
+        (static_cast<double>(nc.k) - static_cast<double>(na.k) + shift) * L + (u[c].z - u[a].z)};
     // F l n n^T = (F / l) d d^T
     const double k = w * F / std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     s[0] += k * d[0] * d[0];
@@ -347,14 +386,9 @@ void node_stresses(const Lattice& lat, const std::vector<Vec3>& u, const std::ve
     s[4] += k * d[1] * d[2];
     s[5] += k * d[0] * d[2];
   };
-  const auto modules = static_cast<std::int64_t>(lat.num_modules());
-#pragma omp parallel for schedule(static)
-  for (std::int64_t m = 0; m < modules; ++m) {
-    const auto i = static_cast<index_t>(m % nx), j = static_cast<index_t>((m / nx) % ny),
-               k = static_cast<index_t>(m / (std::int64_t{nx} * ny));
-    if (!lat.module_present(i, j, k))
-      continue;
-    double* s = &module[6 * static_cast<std::size_t>(m)];
+  for_each_module(lat, box, [&](index_t i, index_t j, index_t k, std::size_t m) {
+    double* s = &module[6 * m];
+    std::fill_n(s, 6, 0.0);
     // The 12 edges, each shared by the present modules that have it (4 area_factor of them).
     for (index_t p = 0; p < 2; ++p)
       for (index_t q = 0; q < 2; ++q)
@@ -380,8 +414,37 @@ void node_stresses(const Lattice& lat, const std::vector<Vec3>& u, const std::ve
       add_bar(lat.bar(static_cast<Family>(f), i, j, k), 1.0, s);
     for (int e = 0; e < 6; ++e)
       s[e] *= inv_volume;
-  }
-  // A node's stress: the mean over the present modules that have it.
+  });
+}
+
+void module_strains(const Lattice& lat, const std::vector<Vec3>& u, std::vector<double>& module,
+                    ModuleBox box) {
+  const double quarter_over_L = 0.25 / lat.L();
+  for_each_module(lat, box, [&](index_t i, index_t j, index_t k, std::size_t m) {
+    // G[p][q]: the mean over the 4 edges along q of u_p's difference from end to end, over L.
+    double G[3][3] = {};
+    for (index_t a = 0; a < 2; ++a)
+      for (index_t b = 0; b < 2; ++b) {
+        const index_t ends[3][2] = {
+            {lat.corner(i, j + a, k + b), lat.corner(i + 1, j + a, k + b)},
+            {lat.corner(i + a, j, k + b), lat.corner(i + a, j + 1, k + b)},
+            {lat.corner(i + a, j + b, k), lat.corner(i + a, j + b, k + 1)}};
+        for (int q = 0; q < 3; ++q)
+          for (int p = 0; p < 3; ++p)
+            G[p][q] += u[ends[q][1]][p] - u[ends[q][0]][p];
+      }
+    double* s = &module[6 * m];
+    s[0] = quarter_over_L * G[0][0];
+    s[1] = quarter_over_L * G[1][1];
+    s[2] = quarter_over_L * G[2][2];
+    s[3] = 0.5 * quarter_over_L * (G[0][1] + G[1][0]);
+    s[4] = 0.5 * quarter_over_L * (G[1][2] + G[2][1]);
+    s[5] = 0.5 * quarter_over_L * (G[0][2] + G[2][0]);
+  });
+}
+
+void node_means(const Lattice& lat, const std::vector<double>& module, std::vector<double>& out) {
+  const index_t nx = lat.nx(), ny = lat.ny(), nz = lat.nz();
   out.assign(6 * std::size_t{lat.num_nodes()}, 0.0);
   const auto corners = static_cast<std::int64_t>(lat.num_corners());
 #pragma omp parallel for schedule(static)
@@ -407,7 +470,29 @@ void node_stresses(const Lattice& lat, const std::vector<Vec3>& u, const std::ve
     for (int e = 0; count > 0 && e < 6; ++e)
       out[6 * static_cast<std::size_t>(q) + e] = sum[e] / count;
   }
-  std::copy(module.begin(), module.end(), out.begin() + 6 * static_cast<std::ptrdiff_t>(corners));
+  // A centre node: its module's (0 for an absent module).
+  const auto modules = static_cast<std::int64_t>(lat.num_modules());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t m = 0; m < modules; ++m) {
+    const auto i = static_cast<index_t>(m % nx), j = static_cast<index_t>((m / nx) % ny),
+               k = static_cast<index_t>(m / (std::int64_t{nx} * ny));
+    if (lat.module_present(i, j, k))
+      std::copy_n(&module[6 * static_cast<std::size_t>(m)], 6,
+                  &out[6 * std::size_t{lat.centre(i, j, k)}]);
+  }
+}
+
+void node_stresses(const Lattice& lat, const std::vector<Vec3>& u, const std::vector<double>& force,
+                   std::vector<double>& out) {
+  std::vector<double> module(6 * std::size_t{lat.num_modules()}, 0.0);
+  module_stresses(lat, u, force, module);
+  node_means(lat, module, out);
+}
+
+void node_strains(const Lattice& lat, const std::vector<Vec3>& u, std::vector<double>& out) {
+  std::vector<double> module(6 * std::size_t{lat.num_modules()}, 0.0);
+  module_strains(lat, u, module);
+  node_means(lat, module, out);
 }
 
 LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim, const std::vector<std::string>& arrays,
@@ -508,11 +593,12 @@ LatticeVtuWriter::LatticeVtuWriter(const Simulation& sim, const std::vector<std:
   damage_.resize(nb);
   force_.resize(nb);
   strain_.resize(nb);
-  if (present_[VtuLayout::Stress]) {
+  if (present_[VtuLayout::Stress] || present_[VtuLayout::NodeStrain])
     u_all_.resize(nn);
-    stress_.resize(6 * std::size_t{nn});
+  if (present_[VtuLayout::Stress])
     stress_f_.resize(6 * std::size_t{nn});
-  }
+  if (present_[VtuLayout::NodeStrain])
+    node_strain_f_.resize(6 * std::size_t{nn});
 }
 
 void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
@@ -541,8 +627,12 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   }
   sim.bar_snapshot(state_, damage_, force_, &strain_);
   if (present_[VtuLayout::Stress]) {
-    node_stresses(sim.lattice(), u_all_, force_, stress_);
-    stress_f_.assign(stress_.begin(), stress_.end());
+    node_stresses(sim.lattice(), u_all_, force_, tensor_);
+    stress_f_.assign(tensor_.begin(), tensor_.end());
+  }
+  if (present_[VtuLayout::NodeStrain]) {
+    node_strains(sim.lattice(), u_all_, tensor_);
+    node_strain_f_.assign(tensor_.begin(), tensor_.end());
   }
   const auto nb = static_cast<std::ptrdiff_t>(nb_);
 #pragma omp parallel for schedule(static)
@@ -564,6 +654,8 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
     }
     if (present_[VtuLayout::Stress])
       keep_present(stress_f_, ranks_.node, 6);
+    if (present_[VtuLayout::NodeStrain])
+      keep_present(node_strain_f_, ranks_.node, 6);
     for (std::vector<float>* v : {&damage_f_, &force_f_, &strain_f_}) {
       keep_present(*v, ranks_.bar, 1);
       v->resize(nb_);
@@ -592,6 +684,7 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
   block(VtuLayout::Displacement, disp_.data(), 3 * std::size_t{wn} * sizeof(float));
   block(VtuLayout::Velocity, vel_.data(), 3 * std::size_t{wn} * sizeof(float));
   block(VtuLayout::Stress, stress_f_.data(), 6 * std::size_t{wn} * sizeof(float));
+  block(VtuLayout::NodeStrain, node_strain_f_.data(), 6 * std::size_t{wn} * sizeof(float));
   block(VtuLayout::NodeId, node_id_.data(), node_id_.size() * sizeof(std::int32_t));
   block(VtuLayout::Damage, damage_f_.data(), std::size_t{wb} * sizeof(float));
   block(VtuLayout::State, state_.data(), wb);

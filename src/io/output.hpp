@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -76,6 +77,7 @@ struct VtuLayout {
     Displacement, // Float32 x 3 per node
     Velocity,     // Float32 x 3 per node
     Stress,       // Float32 x 6 per node (xx, yy, zz, xy, yz, xz), only when named
+    NodeStrain,   // Float32 x 6 per node, likewise
     Damage,       // Float32 per bar
     State,        // UInt8 per bar
     Force,        // Float32 per bar
@@ -114,8 +116,8 @@ struct VtuLayout {
 // The arrays a snapshot may hold, by the names they have in it (output.vtu_arrays chooses among
 // them): displacement and velocity per node; damage, state, axial_force and strain per bar; the
 // bar law's state arrays that snapshots carry; the material fields E, Gf, e_p and e_r (where the
-// material varies); and, only where output.vtu_arrays names it, the stress at the nodes
-// (node_stresses). The reference positions, the cells and a shaped body's node and bar numbers
+// material varies); and, only where output.vtu_arrays names them, the stress and the strain at
+// the nodes ("stress", "node_strain": node_stresses, node_strains). The reference positions, the cells and a shaped body's node and bar numbers
 // are always written.
 std::vector<std::string> vtu_array_names(std::span<const StateArray> law_states);
 // The layout of a snapshot of `sim`'s body (`nodes` and `bars`: the whole body's present ones):
@@ -133,6 +135,12 @@ VtuLayout vtu_layout(index_t nodes, index_t bars, const Simulation& sim, bool id
 // of blocks of 32768 bytes, that size, the last block's size if partial, else 0, each block's
 // compressed size) and the blocks, each compressed on its own (zlib level 1), in parallel.
 std::string zlib_blocks(const void* data, std::uint64_t bytes);
+constexpr std::uint64_t kZlibBlock = 32768; // VTK's own block size
+// The blocks of `bytes` of data, kZlibBlock each (the last what is left), compressed on their
+// own as zlib_blocks compresses them, in parallel; `data` starts a block.
+std::vector<std::string> zlib_compress_blocks(const void* data, std::uint64_t bytes);
+// zlib_blocks' header of an array of `bytes` whose blocks take `sizes` bytes compressed.
+std::string zlib_header(std::uint64_t bytes, const std::vector<std::uint64_t>& sizes);
 
 // A shaped body's modules as a NumPy .npy file (body.npy of a run folder): uint8, shape
 // (nx, ny, nz), indexed [i, j, k], 1 where the module is present (Fortran order: i fastest, the
@@ -164,9 +172,9 @@ private:
   std::vector<std::int32_t> node_id_, bar_id_;
   std::string header_;
   std::vector<char> static_block_;
-  std::vector<float> disp_, vel_, damage_f_, force_f_, strain_f_, stress_f_;
-  std::vector<Vec3> u_all_; // every node's displacement, for the stress
-  std::vector<double> stress_;
+  std::vector<float> disp_, vel_, damage_f_, force_f_, strain_f_, stress_f_, node_strain_f_;
+  std::vector<Vec3> u_all_;    // every node's displacement, for the stress and strain
+  std::vector<double> tensor_; // the stress or strain at every node
   std::vector<std::uint8_t> state_;
   std::vector<double> damage_, force_, strain_;
   std::vector<std::size_t> law_states_; // the law's state arrays written (VtuLayout::states)
@@ -190,6 +198,32 @@ private:
 // yy, zz, xy, yz, xz (0 at a node of no present module).
 void node_stresses(const Lattice& lat, const std::vector<Vec3>& u, const std::vector<double>& force,
                    std::vector<double>& out);
+// The strain at each node (docs/model.md, "Stress and strain at the nodes"): the mean of the
+// strains of the present modules that have the node (a centre node: its module's), a module's
+// strain being its mean displacement gradient G, symmetrised, (G + G^T) / 2, with
+// G_pq = (1 / 4 L) sum over its 4 edges along q of the difference of u_p from end to end (the
+// volume mean of grad u under the trilinear interpolation of its corners' displacements: exact
+// for an affine field). Same order as the stress (xx, yy, zz, xy, yz, xz), tensor components.
+void node_strains(const Lattice& lat, const std::vector<Vec3>& u, std::vector<double>& out);
+
+// The two passes of node_stresses and node_strains, for a body split over processes: the
+// modules of rows [j0, j1) along y in planes [k0, k1) along z (all i; the default, every
+// module), and the nodes' means once every module around them is known.
+struct ModuleBox {
+  index_t j0 = 0, j1 = std::numeric_limits<index_t>::max();
+  index_t k0 = 0, k1 = std::numeric_limits<index_t>::max();
+};
+// Each present module's stress in `box`, 6 per module of the lattice in `module` (sized 6 per
+// module; the values of other modules are left as they are).
+void module_stresses(const Lattice& lat, const std::vector<Vec3>& u,
+                     const std::vector<double>& force, std::vector<double>& module,
+                     ModuleBox box = {});
+// The same for the strain.
+void module_strains(const Lattice& lat, const std::vector<Vec3>& u, std::vector<double>& module,
+                    ModuleBox box = {});
+// Into `out` (6 per node): a corner node's mean of the present modules that have it, a centre
+// node its module's, 0 at a node of no present module.
+void node_means(const Lattice& lat, const std::vector<double>& module, std::vector<double>& out);
 
 // The ParaView collection that lists the snapshots.
 std::string lattice_pvd(const std::vector<std::pair<double, std::string>>& snapshots);

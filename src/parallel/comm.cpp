@@ -194,6 +194,54 @@ void broadcast_from_first(std::string& bytes) {
   MPI_Bcast(bytes.data(), static_cast<int>(size), MPI_CHAR, 0, MPI_COMM_WORLD);
 }
 
+std::vector<std::string> exchange_bytes(const std::vector<std::string>& parts) {
+  if (!g_active)
+    return parts;
+  const auto ranks = static_cast<std::size_t>(process_count());
+  if (parts.size() != ranks)
+    throw InputError("exchange_bytes: one part per process expected");
+  std::vector<std::uint64_t> out_sizes(ranks), in_sizes(ranks);
+  for (std::size_t r = 0; r < ranks; ++r)
+    out_sizes[r] = parts[r].size();
+  MPI_Alltoall(out_sizes.data(), 1, MPI_UINT64_T, in_sizes.data(), 1, MPI_UINT64_T,
+               MPI_COMM_WORLD);
+  std::vector<std::string> got(ranks);
+  std::vector<MPI_Request> requests;
+  constexpr std::uint64_t kPiece = std::uint64_t{1} << 30; // MPI counts are ints
+  // (The pieces of one pair go in order under tags 0, 1, ...)
+  for (std::size_t r = 0; r < ranks; ++r) {
+    got[r].resize(in_sizes[r]);
+    for (std::uint64_t at = 0, tag = 0; at < in_sizes[r]; at += kPiece, ++tag)
+      MPI_Irecv(got[r].data() + at, static_cast<int>(std::min(kPiece, in_sizes[r] - at)),
+                MPI_BYTE, static_cast<int>(r), static_cast<int>(tag), MPI_COMM_WORLD,
+                &requests.emplace_back());
+  }
+  for (std::size_t r = 0; r < ranks; ++r)
+    for (std::uint64_t at = 0, tag = 0; at < out_sizes[r]; at += kPiece, ++tag)
+      MPI_Isend(parts[r].data() + at, static_cast<int>(std::min(kPiece, out_sizes[r] - at)),
+                MPI_BYTE, static_cast<int>(r), static_cast<int>(tag), MPI_COMM_WORLD,
+                &requests.emplace_back());
+  MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE);
+  return got;
+}
+
+std::vector<std::uint64_t> gather_on_all(const std::vector<std::uint64_t>& mine) {
+  if (!g_active)
+    return mine;
+  const int count = static_cast<int>(mine.size());
+  std::vector<int> counts(static_cast<std::size_t>(process_count())), offsets(counts.size());
+  MPI_Allgather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD);
+  int total = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    offsets[r] = total;
+    total += counts[r];
+  }
+  std::vector<std::uint64_t> all(static_cast<std::size_t>(total));
+  MPI_Allgatherv(mine.data(), count, MPI_UINT64_T, all.data(), counts.data(), offsets.data(),
+                 MPI_UINT64_T, MPI_COMM_WORLD);
+  return all;
+}
+
 void abort_processes(int code) {
   if (g_active && process_count() > 1) {
     std::fflush(stdout);
@@ -268,6 +316,12 @@ std::vector<double> scatter_from_first(const std::vector<std::vector<double>>& p
   return parts.empty() ? std::vector<double>{} : parts[0];
 }
 void broadcast_from_first(std::string&) {}
+std::vector<std::string> exchange_bytes(const std::vector<std::string>& parts) {
+  return parts;
+}
+std::vector<std::uint64_t> gather_on_all(const std::vector<std::uint64_t>& mine) {
+  return mine;
+}
 void abort_processes(int) {}
 double min_over_processes(double x) {
   return x;

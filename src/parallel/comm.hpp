@@ -62,6 +62,11 @@ void broadcast_from_first(double* values, int count);
 std::vector<double> scatter_from_first(const std::vector<std::vector<double>>& parts);
 // Rank 0's bytes to every rank.
 void broadcast_from_first(std::string& bytes);
+// parts[r] of every rank to rank r (parts: one per rank); returns what each rank sent to this
+// one, by rank. Any sizes (sent in pieces of at most 1 GiB). Collective.
+std::vector<std::string> exchange_bytes(const std::vector<std::string>& parts);
+// Every rank's values, concatenated in rank order, on every rank. Collective.
+std::vector<std::uint64_t> gather_on_all(const std::vector<std::uint64_t>& mine);
 
 // Ends every process of the run with `code` (MPI_Abort): for an error on some processes
 // after they stopped agreeing step by step, which would leave the others waiting forever.
