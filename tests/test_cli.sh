@@ -401,6 +401,29 @@ rc=$?
 if "$LDEM" ensemble "$FGM" --runs 2 --no-plot --out "$T/ens" >/dev/null 2>"$T/stderr" &&
   [ -s "$T/ens/homogeneous/run_01/summary.json" ] && grep -q "^| median" "$T/ens/ensemble.md" &&
   [ "$(wc -l <"$T/ens/ensemble.csv")" -eq 3 ] && grep -q '"perturbation"' "$T/ens/homogeneous/run_01/summary.json"; then ok; else bad "ensemble: $(cat "$T/stderr")"; fi
+# (its runs side by side, as many as the cores, each one's output in its folder's log)
+cores=$(nproc)
+grep -q "ensemble of 2 runs, $((cores < 2 ? 1 : 2)) at a time on $cores cores" "$T/stderr" &&
+  grep -q "ldem: done" "$T/ens/homogeneous/run_00.log" && grep -q "ldem: done" "$T/ens/homogeneous/run_01.log" &&
+  ok || bad "ensemble's runs side by side: $(cat "$T/stderr")"
+# Two runs started without --threads share the cores (util/core_share.hpp): the second finds
+# the first and takes its share from its first step, the first gives up a share within a second
+# (or had one from the start, if other tests' runs were going on: they are counted too, so the
+# counts are not fixed here; tests/test_core_share.cpp has them). On one core nothing is shared.
+if [ "$cores" -ge 2 ]; then
+  { sed 's/^end = .*/end = 2.0e-3/' "$FGM"; printf '\n[output]\nvtu = false\n'; } >"$T/share_long.toml"
+  sed 's/^end = .*/end = 1.5e-4/' "$T/share_long.toml" >"$T/share_short.toml"
+  "$LDEM" run "$T/share_long.toml" --out "$T/share_a" --no-plot >/dev/null 2>"$T/share_a.err" &
+  a=$!
+  sleep 1
+  "$LDEM" run "$T/share_short.toml" --out "$T/share_b" --no-plot >/dev/null 2>"$T/share_b.err"
+  sleep 2.5
+  kill -TERM $a 2>/dev/null
+  wait $a
+  shared="ldem: [0-9]* runs on this machine's $cores cores: [0-9]* threads* from step"
+  grep -q "$shared 0\$" "$T/share_b.err" && grep -q "$shared" "$T/share_a.err" && ok ||
+    bad "two runs sharing the cores: $(cat "$T/share_a.err" "$T/share_b.err")"
+fi
 "$LDEM" ensemble "$FGM" "$T/nope.toml" --runs 2 --out "$T/ens_bad" >/dev/null 2>"$T/stderr"
 rc=$?
 [ $rc -eq 2 ] && [ ! -e "$T/ens_bad" ] && grep -q "nope.toml: cannot read the case file" "$T/stderr" && ok || bad "ensemble with a bad case: rc $rc, $(cat "$T/stderr")"

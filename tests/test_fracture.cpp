@@ -145,7 +145,9 @@ struct NotchedPlate {
   }
 };
 
-DynamicRun dynamic_fracture(int threads, double damping = 0.0) {
+// `switching`: the step's threads change every 37 steps between `threads` and 1
+// (Simulation::set_threads, as a run sharing the cores does).
+DynamicRun dynamic_fracture(int threads, double damping = 0.0, bool switching = false) {
   const int threads_before = omp_get_max_threads();
   omp_set_num_threads(threads);
   const NotchedPlate plate;
@@ -156,6 +158,8 @@ DynamicRun dynamic_fracture(int threads, double damping = 0.0) {
   DynamicRun run;
   run.precracked = plate.notch.size();
   for (int s = 0; sim.time() < 150.0; ++s) {
+    if (switching)
+      sim.set_threads((s / 37) % 2 == 1 ? 1 : threads);
     sim.step(s % 20 == 0);
     if (s % 20 == 0)
       run.reports.push_back(sim.last_report());
@@ -268,8 +272,7 @@ TEST(Fracture, EventsAreCompleteAndOrdered) {
 }
 
 // Same case, 1 and 2 threads: identical bits.
-TEST(Fracture, OneAndTwoThreadsGiveIdenticalResults) {
-  const DynamicRun a = dynamic_fracture(1, 0.05), b = dynamic_fracture(2, 0.05);
+void expect_identical(const DynamicRun& a, const DynamicRun& b) {
   ASSERT_EQ(a.u.size(), b.u.size());
   for (std::size_t i = 0; i < a.u.size(); ++i)
     ASSERT_EQ(a.u[i], b.u[i]) << "displacement " << i;
@@ -285,6 +288,20 @@ TEST(Fracture, OneAndTwoThreadsGiveIdenticalResults) {
     EXPECT_EQ(a.reports[i].kinetic, b.reports[i].kinetic);
     EXPECT_EQ(a.reports[i].damage_dissipated, b.reports[i].damage_dissipated);
     EXPECT_EQ(a.reports[i].damping_dissipated, b.reports[i].damping_dissipated);
+  }
+}
+
+// The same bits on one thread, on two, and with the count changed between 2 and 1 every 37
+// steps during the run (a run that shares the machine's cores).
+TEST(Fracture, OneTwoAndChangingThreadsGiveIdenticalResults) {
+  const DynamicRun a = dynamic_fracture(1, 0.05);
+  {
+    SCOPED_TRACE("two threads");
+    expect_identical(a, dynamic_fracture(2, 0.05));
+  }
+  {
+    SCOPED_TRACE("2 and 1 threads in turn");
+    expect_identical(a, dynamic_fracture(2, 0.05, true));
   }
 }
 

@@ -8,6 +8,7 @@
 #include "io/output.hpp"
 #include "parallel/comm.hpp"
 #include "solver/modes.hpp"
+#include "util/core_share.hpp"
 #include "util/error.hpp"
 #include "util/text_file.hpp"
 
@@ -268,7 +269,7 @@ int run_command(const std::string& path, const RunOptions& o) {
     if (body->numbers().per_bar)
       body->write_fields(dir + "fields.csv");
     return run_loop(c, *body, o.out_dir, st, true, st.plots, st.checkpoint_every,
-                    st.checkpoint_seconds);
+                    st.checkpoint_seconds, shares_cores(o.threads));
   });
 }
 
@@ -420,7 +421,7 @@ int resume_command(const std::string& out_dir, int threads, bool plots, int grid
   return guarded_loop([&] {
     // The run's own options; --no-plot here turns its plots off too.
     return run_loop(c, *body, out_dir, st, false, plots && st.plots, st.checkpoint_every,
-                    st.checkpoint_seconds);
+                    st.checkpoint_seconds, shares_cores(threads));
   });
 }
 

@@ -7,13 +7,22 @@
 #include "util/error.hpp"
 
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <cmath>
+#include <csignal>
+#include <cstring>
+#include <fcntl.h>
 #include <filesystem>
 #include <fmt/format.h>
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <omp.h>
+#include <spawn.h>
 #include <sstream>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #ifndef LDEM_PLOT_SCRIPT
 #define LDEM_PLOT_SCRIPT "tools/plot/ldem_plot.py"
@@ -135,7 +144,51 @@ std::string measured_median(const std::vector<double>& v, const char* f) {
   return n == v.size() || n == 0 ? m : fmt::format("{} ({} of {} runs)", m, n, v.size());
 }
 
+// SIGINT or SIGTERM to the ensemble's own process: no new run starts, and the runs going on are
+// asked to stop (each at a step boundary, with its checkpoint).
+volatile std::sig_atomic_t g_ensemble_stop = 0;
+void on_ensemble_signal(int sig) {
+  g_ensemble_stop = sig;
+}
+
+// A run of the ensemble, as a process of its own.
+struct Job {
+  std::size_t k = 0; // its case
+  int i = 0;         // its perturbation
+  std::string out, log;
+  pid_t pid = 0;
+  int rc = -1;
+  std::chrono::steady_clock::time_point start;
+};
+
+// This program's path (the runs are started as `ldem run`, so that their command name is
+// ldem's: util/core_share.hpp counts them).
+std::string own_path() {
+  std::error_code ec;
+  const fs::path p = fs::read_symlink("/proc/self/exe", ec);
+  if (ec)
+    throw InputError(fmt::format("ensemble: cannot find this program's path: {}", ec.message()));
+  return p.string();
+}
+
+// The last lines of a run's log, for the message of a failed run.
+std::string log_tail(const std::string& path, std::size_t lines) {
+  std::ifstream in(path);
+  std::vector<std::string> all;
+  for (std::string line; std::getline(in, line);)
+    if (line.find('\r') == std::string::npos) // (a progress bar's line)
+      all.push_back(line);
+  std::string s;
+  for (std::size_t q = all.size() > lines ? all.size() - lines : 0; q < all.size(); ++q)
+    s += "  " + all[q] + "\n";
+  return s;
+}
+
 } // namespace
+
+std::function<void(CaseSpec&)> ensemble_adjust(int i, int n) {
+  return [i, n](CaseSpec& s) { apply(s, perturbation(i, n), i == 0); };
+}
 
 int ensemble_command(const EnsembleOptions& o) {
   if (o.cases.empty())
@@ -164,76 +217,174 @@ int ensemble_command(const EnsembleOptions& o) {
     throw InputError(
         fmt::format("{}: cannot create the output folder: {}", o.out_dir, ec.message()));
 
-  std::vector<Row> rows;
-  for (std::size_t k = 0; k < o.cases.size(); ++k)
+  // The runs, side by side: each a process of its own (`ldem run --ensemble-member I N`), its
+  // output in its folder's log; `jobs` at once, sharing the cores (or with --threads each).
+  const int cores = omp_get_num_procs();
+  const int at_once = o.jobs > 0 ? o.jobs : std::max(1, o.threads > 0 ? cores / o.threads : cores);
+  const std::string self = own_path();
+  std::vector<Job> jobs;
+  for (std::size_t k = 0; k < o.cases.size(); ++k) {
+    fs::create_directories(fs::path(o.out_dir) / stems[k], ec);
     for (int i = 0; i < o.runs; ++i) {
-      const Perturbation p = perturbation(i, o.runs);
-      RunOptions ro;
-      ro.out_dir = fmt::format("{}/{}/run_{:02d}", o.out_dir, stems[k], i);
-      ro.threads = o.threads;
-      ro.force = o.force;
-      ro.plots = o.plots;
-      ro.adjust = [&](CaseSpec& s) { apply(s, p, i == 0); };
-      fmt::print(stderr,
-                 "ldem: ensemble {} run {}/{}: Courant {:.4f}, velocity x (1 {:+.0e}), "
-                 "pre-crack {}\n",
-                 stems[k], i + 1, o.runs, p.courant, p.velocity_eps,
-                 p.mirror_precrack ? "mirrored" : "as given");
-      const int rc = run_command(o.cases[k], ro);
-      if (rc != 0)
-        return rc;
-      const std::string summary_file = ro.out_dir + "/summary.json";
-      nlohmann::ordered_json summary = read_json(summary_file); // keeps the file's key order
-      summary["perturbation"] = {{"run", i},
-                                 {"courant", p.courant},
-                                 {"velocity_relative_change", p.velocity_eps},
-                                 {"precrack_mirrored", p.mirror_precrack}};
-      write_file(summary_file, summary.dump(2) + "\n");
-
-      Row r;
-      r.case_name = stems[k];
-      r.title = summary.value("title", "");
-      r.run = i;
-      r.p = p;
-      r.dt = summary["dt"].get<double>();
-      r.wall = summary["wall_s"].get<double>();
-      r.balance = summary["max_balance_error"].get<double>();
-      const auto& c = summary["analysis"]["crack"];
-      if (!c["branching_length_m"].is_null()) {
-        r.branching_mm = c["branching_length_m"].get<double>() * 1e3;
-        double hi = -1e9, lo = 1e9;
-        for (const auto& a : c["branch_angles_deg"]) {
-          hi = std::max(hi, a.get<double>());
-          lo = std::min(lo, a.get<double>());
-        }
-        r.upper_deg = hi;
-        r.lower_deg = lo;
-      }
-      for (const auto& b : c["branches"])
-        if (b["level"].get<int>() == 1) {
-          ++r.branches;
-          r.open += b["opens"].get<bool>();
-        }
-      r.secondary = c["secondary_branching"].get<bool>();
-      r.speed = c["max_crack_speed_m_s"].get<double>();
-      r.cR = c["rayleigh_speed_m_s"].get<double>();
-      if (!c["speed_before_branching_m_s"].is_null())
-        r.speed_branch = c["speed_before_branching_m_s"].get<double>();
-      r.speed_over_cR = c["max_crack_speed_over_rayleigh"].get<double>();
-      // null: no window of the kind (an arrested or short crack).
-      auto speed_or_nan = [](const auto& v) {
-        return v.is_null() ? std::numeric_limits<double>::quiet_NaN() : v.template get<double>();
-      };
-      r.speed_median = speed_or_nan(c["median_crack_speed_m_s"]);
-      r.speed_unflagged = speed_or_nan(c["max_unflagged_crack_speed_m_s"]);
-      r.length_mm = c["final_crack_length_m"].get<double>() * 1e3;
-      const std::vector<double> e = last_energy(ro.out_dir + "/energy.csv");
-      r.W = e[1];
-      r.U = e[2];
-      r.K = e[3];
-      r.D = e[4];
-      rows.push_back(r);
+      Job j;
+      j.k = k;
+      j.i = i;
+      j.out = fmt::format("{}/{}/run_{:02d}", o.out_dir, stems[k], i);
+      j.log = j.out + ".log";
+      jobs.push_back(j);
     }
+  }
+  fmt::print(stderr,
+             "ldem: ensemble of {} runs, {} at a time on {} cores; each run's output in "
+             "its folder's .log\n",
+             jobs.size(), std::min<std::size_t>(jobs.size(), static_cast<std::size_t>(at_once)),
+             cores);
+  struct sigaction act = {}, old_int = {}, old_term = {};
+  act.sa_handler = on_ensemble_signal; // (no SA_RESTART: waitpid returns at a signal)
+  sigemptyset(&act.sa_mask);
+  g_ensemble_stop = 0;
+  sigaction(SIGINT, &act, &old_int);
+  sigaction(SIGTERM, &act, &old_term);
+  std::size_t next = 0, running = 0;
+  int failed = 0;
+  const auto start = [&](Job& j) {
+    std::vector<std::string> args = {self,
+                                     "run",
+                                     o.cases[j.k],
+                                     "--out",
+                                     j.out,
+                                     "--ensemble-member",
+                                     std::to_string(j.i),
+                                     std::to_string(o.runs)};
+    if (o.threads > 0)
+      args.insert(args.end(), {"--threads", std::to_string(o.threads)});
+    if (o.force)
+      args.emplace_back("--force");
+    if (!o.plots)
+      args.emplace_back("--no-plot");
+    std::vector<char*> argv;
+    for (std::string& a : args)
+      argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t files;
+    posix_spawn_file_actions_init(&files);
+    posix_spawn_file_actions_addopen(&files, 1, j.log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&files, 1, 2);
+    const int err = posix_spawn(&j.pid, self.c_str(), &files, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&files);
+    if (err != 0)
+      throw InputError(fmt::format("ensemble: cannot start {}: {}", self, std::strerror(err)));
+    j.start = std::chrono::steady_clock::now();
+    const Perturbation p = perturbation(j.i, o.runs);
+    fmt::print(stderr,
+               "ldem: ensemble {} run {}/{}: Courant {:.4f}, velocity x (1 {:+.0e}), pre-crack "
+               "{}: started\n",
+               stems[j.k], j.i + 1, o.runs, p.courant, p.velocity_eps,
+               p.mirror_precrack ? "mirrored" : "as given");
+    ++running;
+  };
+  bool stop_sent = false;
+  while (running > 0 || (next < jobs.size() && !failed && !g_ensemble_stop)) {
+    while (next < jobs.size() && running < static_cast<std::size_t>(at_once) && !failed &&
+           !g_ensemble_stop)
+      start(jobs[next++]);
+    int status = 0;
+    const pid_t done = waitpid(-1, &status, 0);
+    if (done < 0) {
+      if (errno != EINTR)
+        break;
+      if (g_ensemble_stop && !stop_sent) { // (a Ctrl-C reaches the runs from the terminal too)
+        for (const Job& j : jobs)
+          if (j.pid > 0 && j.rc < 0)
+            kill(j.pid, SIGTERM);
+        stop_sent = true;
+      }
+      continue;
+    }
+    for (Job& j : jobs)
+      if (j.pid == done) {
+        j.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        --running;
+        const double wall =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - j.start).count();
+        if (j.rc == 0)
+          fmt::print(stderr, "ldem: ensemble {} run {}/{}: done in {:.1f} s\n", stems[j.k], j.i + 1,
+                     o.runs, wall);
+        else {
+          fmt::print(stderr, "ldem: ensemble {} run {}/{}: ended with code {} ({}):\n{}",
+                     stems[j.k], j.i + 1, o.runs, j.rc, j.log, log_tail(j.log, 5));
+          if (!failed)
+            failed = j.rc;
+        }
+      }
+  }
+  sigaction(SIGINT, &old_int, nullptr);
+  sigaction(SIGTERM, &old_term, nullptr);
+  if (failed)
+    return failed;
+  if (g_ensemble_stop) {
+    fmt::print(stderr, "ldem: ensemble stopped; the runs that were going on hold checkpoints "
+                       "(ldem resume DIR/CASE/run_NN)\n");
+    return 128 + g_ensemble_stop;
+  }
+
+  std::vector<Row> rows;
+  for (const Job& j : jobs) {
+    const std::size_t k = j.k;
+    const int i = j.i;
+    const Perturbation p = perturbation(i, o.runs);
+    const std::string summary_file = j.out + "/summary.json";
+    nlohmann::ordered_json summary = read_json(summary_file); // keeps the file's key order
+    summary["perturbation"] = {{"run", i},
+                               {"courant", p.courant},
+                               {"velocity_relative_change", p.velocity_eps},
+                               {"precrack_mirrored", p.mirror_precrack}};
+    write_file(summary_file, summary.dump(2) + "\n");
+
+    Row r;
+    r.case_name = stems[k];
+    r.title = summary.value("title", "");
+    r.run = i;
+    r.p = p;
+    r.dt = summary["dt"].get<double>();
+    r.wall = summary["wall_s"].get<double>();
+    r.balance = summary["max_balance_error"].get<double>();
+    const auto& c = summary["analysis"]["crack"];
+    if (!c["branching_length_m"].is_null()) {
+      r.branching_mm = c["branching_length_m"].get<double>() * 1e3;
+      double hi = -1e9, lo = 1e9;
+      for (const auto& a : c["branch_angles_deg"]) {
+        hi = std::max(hi, a.get<double>());
+        lo = std::min(lo, a.get<double>());
+      }
+      r.upper_deg = hi;
+      r.lower_deg = lo;
+    }
+    for (const auto& b : c["branches"])
+      if (b["level"].get<int>() == 1) {
+        ++r.branches;
+        r.open += b["opens"].get<bool>();
+      }
+    r.secondary = c["secondary_branching"].get<bool>();
+    r.speed = c["max_crack_speed_m_s"].get<double>();
+    r.cR = c["rayleigh_speed_m_s"].get<double>();
+    if (!c["speed_before_branching_m_s"].is_null())
+      r.speed_branch = c["speed_before_branching_m_s"].get<double>();
+    r.speed_over_cR = c["max_crack_speed_over_rayleigh"].get<double>();
+    // null: no window of the kind (an arrested or short crack).
+    auto speed_or_nan = [](const auto& v) {
+      return v.is_null() ? std::numeric_limits<double>::quiet_NaN() : v.template get<double>();
+    };
+    r.speed_median = speed_or_nan(c["median_crack_speed_m_s"]);
+    r.speed_unflagged = speed_or_nan(c["max_unflagged_crack_speed_m_s"]);
+    r.length_mm = c["final_crack_length_m"].get<double>() * 1e3;
+    const std::vector<double> e = last_energy(j.out + "/energy.csv");
+    r.W = e[1];
+    r.U = e[2];
+    r.K = e[3];
+    r.D = e[4];
+    rows.push_back(r);
+  }
 
   // The table: every run, then median and range per case.
   std::string csv =

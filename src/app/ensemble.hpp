@@ -2,6 +2,7 @@
 // of the crack analysis and energies of every run, and their median and range per case.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -11,7 +12,8 @@ struct EnsembleOptions {
   std::vector<std::string> cases;
   int runs = 8;
   std::string out_dir = "results/ensemble";
-  int threads = 0;
+  int threads = 0; // per run (0: the runs share the cores, util/core_share.hpp)
+  int jobs = 0;    // runs at once (0: the cores, or the cores over `threads`)
   bool force = false;
   bool plots = true;
 };
@@ -26,6 +28,10 @@ struct Perturbation {
   bool mirror_precrack = false;
 };
 Perturbation perturbation(int i, int n);
+struct CaseSpec;
+// The change run i of n makes to its case (the perturbation, the crack analysis on, snapshots
+// kept by run 0 only): `ldem run --ensemble-member I N`, which the ensemble starts.
+std::function<void(CaseSpec&)> ensemble_adjust(int i, int n);
 
 int ensemble_command(const EnsembleOptions& o);
 

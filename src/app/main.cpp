@@ -28,8 +28,7 @@ CLI::Validator whole_in(long long lo, long long hi, const std::string& note = ""
         const auto [p, ec] = std::from_chars(text.data(), end, v);
         if (ec == std::errc() && p == end && v >= lo && v <= hi)
           return "";
-        return fmt::format("expected a whole number from {} to {}{}; got '{}'", lo, hi, note,
-                           text);
+        return fmt::format("expected a whole number from {} to {}{}; got '{}'", lo, hi, note, text);
       },
       fmt::format("{} to {}", lo, hi));
 }
@@ -53,7 +52,7 @@ const CLI::Validator kNonEmpty(
       return text.empty() ? "expected a folder; got an empty name" : "";
     },
     "FOLDER");
-}
+} // namespace
 
 int main(int argc, char** argv) {
   const ldem::ProcessGroup processes(argc, argv);
@@ -80,9 +79,16 @@ int main(int argc, char** argv) {
       ->add_option("--out", run.out_dir,
                    "Output folder (default: results/<case file name without .toml>)")
       ->check(kNonEmpty);
-  cmd_run->add_option("--threads", run.threads, "OpenMP threads (0: all cores)")
+  cmd_run
+      ->add_option("--threads", run.threads,
+                   "OpenMP threads (0: this run's share of the cores, among the ldem runs on "
+                   "the machine)")
       ->check(threads_check);
   cmd_run->add_flag("--force", run.force, "Write into a non-empty output folder");
+  std::vector<int> ensemble_member; // (hidden: how `ldem ensemble` starts its runs)
+  cmd_run->add_option("--ensemble-member", ensemble_member, "Run I of N of an ensemble")
+      ->expected(2)
+      ->group("");
   bool no_plot = false;
   cmd_run->add_flag("--no-plot", no_plot, "Do not make the PNG plots");
   cmd_run
@@ -122,11 +128,15 @@ int main(int argc, char** argv) {
                          "Run to this time [s] instead of the run's end (a time after the "
                          "checkpoint's; a finished run continues from its end checkpoint)");
   std::string resume_case;
-  cmd_resume->add_option("--case", resume_case,
-                         "Go on under this case file: other supports, velocities, loads, node "
-                         "sets or end time, the same body, material, pre-cracks and probes")
+  cmd_resume
+      ->add_option("--case", resume_case,
+                   "Go on under this case file: other supports, velocities, loads, node "
+                   "sets or end time, the same body, material, pre-cracks and probes")
       ->check(CLI::ExistingFile);
-  cmd_resume->add_option("--threads", resume_threads, "OpenMP threads (0: all cores)")
+  cmd_resume
+      ->add_option("--threads", resume_threads,
+                   "OpenMP threads (0: this run's share of the cores, among the ldem runs "
+                   "on the machine)")
       ->check(threads_check);
   cmd_resume->add_flag("--no-plot", resume_no_plot, "Do not make the PNG plots");
   add_grid_option(cmd_resume);
@@ -184,8 +194,14 @@ int main(int argc, char** argv) {
   cmd_ensemble->add_option("--out", ens.out_dir, "Output folder")
       ->check(kNonEmpty)
       ->capture_default_str();
-  cmd_ensemble->add_option("--threads", ens.threads, "OpenMP threads (0: all cores)")
+  cmd_ensemble
+      ->add_option("--threads", ens.threads, "OpenMP threads per run (0: a share of the cores)")
       ->check(threads_check);
+  cmd_ensemble
+      ->add_option("--jobs", ens.jobs,
+                   "Runs at once (0: as many as the cores, or the cores over --threads); the "
+                   "runs share the cores unless --threads is given")
+      ->check(CLI::Range(0, 4096));
   cmd_ensemble->add_flag("--force", ens.force, "Write into a non-empty output folder");
   cmd_ensemble->add_flag("--no-plot", ens_no_plot, "Do not make the PNG plots");
 
@@ -262,6 +278,8 @@ int main(int argc, char** argv) {
         run.out_dir = "results/" + stem;
       }
       run.plots = !no_plot;
+      if (ensemble_member.size() == 2)
+        run.adjust = ldem::ensemble_adjust(ensemble_member[0], ensemble_member[1]);
       return ldem::run_command(case_path, run);
     }
     if (cmd_resume->parsed())
@@ -279,8 +297,8 @@ int main(int argc, char** argv) {
     }
     if (cmd_analyze->parsed()) {
       if (analyze_what == "fatigue")
-        fmt::print("{}\n",
-                   ldem::fatigue_report(ldem::analyze_fatigue_dir(analyze_dir, analyze_window, analyze_rate)));
+        fmt::print("{}\n", ldem::fatigue_report(ldem::analyze_fatigue_dir(
+                               analyze_dir, analyze_window, analyze_rate)));
       else
         fmt::print("{}\n", ldem::crack_report(ldem::analyze_crack_dir(analyze_dir)));
       return 0;

@@ -69,6 +69,9 @@ public:
   const EnergyReport& last_report() const { return report_; }
   // Whether the bar law has a fatigue life (its energies include fatigue_dissipated).
   bool counts_cycles() const { return sim().counts_cycles(); }
+  // The threads this process steps with (Simulation::set_threads): the count set.
+  int set_threads(int n) { return sim().set_threads(n); }
+  int threads() const { return sim().threads(); }
   // The case's probes at the start of the last report step (first process).
   const std::vector<double>& last_probes() const { return probes_; }
   // The whole body's events gathered so far and not yet taken, in (step, bar) order (first

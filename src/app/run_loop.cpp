@@ -8,6 +8,7 @@
 #include "io/checkpoint.hpp"
 #include "io/output.hpp"
 #include "parallel/comm.hpp"
+#include "util/core_share.hpp"
 #include "util/error.hpp"
 
 #include <algorithm>
@@ -213,7 +214,8 @@ bool energies_finite(const EnergyReport& r) {
 } // namespace
 
 int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState st, bool fresh,
-             bool plots, std::uint64_t checkpoint_every, double checkpoint_seconds) {
+             bool plots, std::uint64_t checkpoint_every, double checkpoint_seconds,
+             bool share_cores) {
   const CaseSpec& s = c.spec;
   const Lattice& lat = body.lattice();
   const bool writes = body.writes();
@@ -316,6 +318,24 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
   std::unique_ptr<Progress> progress;
   if (writes)
     progress = std::make_unique<Progress>(steps);
+  // The run's share of the cores, now and about once a second (a thread count changes no
+  // result: each process chooses its own).
+  auto last_share = std::chrono::steady_clock::now();
+  const auto share = [&](std::uint64_t step) {
+    const int before = body.threads();
+    const int now = body.set_threads(current_core_share());
+    omp_set_num_threads(now);
+    last_share = std::chrono::steady_clock::now();
+    if (writes && now != before) {
+      const std::size_t runs = stepping_runs().size();
+      fmt::print(stderr, "{}ldem: {} on this machine's {} cores: {} thread{} from step {}\n",
+                 isatty(fileno(stderr)) && step > st.next ? "\n" : "",
+                 runs > 1 ? fmt::format("{} runs", runs) : "alone", omp_get_num_procs(), now,
+                 now > 1 ? "s" : "", step);
+    }
+  };
+  if (share_cores)
+    share(st.next);
   const auto t0 = std::chrono::steady_clock::now();
   auto last_checkpoint = t0;
   const std::uint64_t first = st.next;
@@ -368,6 +388,9 @@ int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState s
       save_checkpoint(n);
       last_checkpoint = std::chrono::steady_clock::now();
     }
+    if (share_cores && n % 10 == 0 &&
+        std::chrono::steady_clock::now() - last_share > std::chrono::seconds(1))
+      share(n);
     // Every 10 steps, a look for a numerical blow-up (a NaN, or displacements beyond any
     // physical scale): the run stops with the first bad node, keeping its outputs up to here
     // and its last checkpoint.

@@ -80,9 +80,11 @@ void catch_stop_signals();
 // The time-step loop of a run, from step st.next, writing into `out_dir` (the first process
 // writes; in a distributed run every process steps its subdomain and takes part in each
 // exchange). `fresh`: the output files start with their headers; otherwise they continue
-// where the checkpoint left them. Returns the run's exit code.
+// where the checkpoint left them. `share_cores`: the run takes its share of the machine's cores
+// (util/core_share.hpp), looked at again about once a second. Returns the run's exit code.
 int run_loop(BuiltCase& c, RunBody& body, const std::string& out_dir, RunState st, bool fresh,
-             bool plots, std::uint64_t checkpoint_every, double checkpoint_seconds);
+             bool plots, std::uint64_t checkpoint_every, double checkpoint_seconds,
+             bool share_cores = false);
 
 // run_loop, and in a distributed run an error on one process (an output that cannot be
 // written, say) ends all of them: the others would wait for it at the next exchange.

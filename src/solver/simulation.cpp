@@ -687,6 +687,17 @@ void Simulation::bar_snapshot(std::vector<std::uint8_t>& state, std::vector<doub
   law_->bar_snapshot(*core_, state, damage, force, strain);
 }
 
+int Simulation::set_threads(int n) {
+  SimulationCore& c = *core_;
+  const auto built = static_cast<int>(c.thread_scratch.size());
+  c.threads = std::clamp(n, 1, built);
+  return c.threads;
+}
+
+int Simulation::threads() const {
+  return core_->threads;
+}
+
 index_t Simulation::first_bad_node() const {
   const Lattice& lat = core_->lat;
   return first_node_beyond(1e3 * lat.L() *

@@ -330,6 +330,10 @@ public:
   // The first node whose displacement is not finite or beyond 1e3 times the body's size (a
   // numerical blow-up), or num_nodes() if none.
   index_t first_bad_node() const;
+  // The threads the step takes from now on: n, within [1, the OpenMP threads when it was
+  // built] (its per-thread buffers). The results do not depend on it. Returns the count set.
+  int set_threads(int n);
+  int threads() const;
   // The first node with a displacement component beyond `limit` (or not finite), or
   // num_nodes() if none.
   index_t first_node_beyond(double limit) const;
