@@ -1,5 +1,7 @@
 #include "app/bench.hpp"
 
+#include "app/case_run.hpp"
+
 #include "parallel/comm.hpp"
 #include "solver/simulation.hpp"
 
@@ -59,6 +61,7 @@ BenchResult run_bench(const BenchOptions& o) {
   r.nodes = whole.num_nodes();
   SolverOptions opt;
   opt.step.safety = 0.9;
+  opt.setup_progress = setup_progress_line;
   if (r.processes == 1) {
     Lattice lat = whole;
     BarTable table(lat, bench_material());

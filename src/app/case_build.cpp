@@ -1,6 +1,7 @@
 // Building a case: from a case file to a ready Simulation (or, for a distributed run, what
 // each process needs to build its subdomain), and the resolved case the run reports.
 #include "app/case_run.hpp"
+#include "parallel/comm.hpp"
 #include "io/output.hpp"
 #include "solver/law_kernels.hpp"
 #include "material/bar_law_fatigue.hpp"
@@ -323,6 +324,11 @@ template <class F> auto for_entry(const std::string& entry, F&& f) {
 
 } // namespace
 
+void setup_progress_line(const std::string& phase, double seconds) {
+  if (seconds >= 2.0 && process_rank() == 0)
+    fmt::print(stderr, "ldem: set-up: {} ({:.1f} s)\n", phase, seconds);
+}
+
 BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&)>& adjust,
                      bool with_simulation) {
   BuiltCase c;
@@ -543,6 +549,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
     c.options.step.end = s.end_time;
     c.options.damping = s.damping;
     c.options.law = find_law(s.law);
+    c.options.setup_progress = setup_progress_line;
     if (!s.output.vtu_arrays.empty()) {
       const std::vector<std::string> names =
           vtu_array_names(c.options.law ? c.options.law->state_arrays

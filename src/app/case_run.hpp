@@ -120,6 +120,9 @@ struct RunOptions {
 };
 
 int check_command(const std::string& path);
+// The set-up's progress (SolverOptions::setup_progress) on the first process's standard error,
+// once it has taken 2 s: a large body's set-up says what it is doing.
+void setup_progress_line(const std::string& phase, double seconds);
 int run_command(const std::string& path, const RunOptions& options);
 // Continues the run in `out_dir` from its checkpoint: an interrupted one, or with `end` (a time
 // after the checkpoint's) any run, a finished one from its end checkpoint included, to that end.

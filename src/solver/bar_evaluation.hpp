@@ -61,7 +61,9 @@ template <class Law> void mark_damaged_rows(SimulationCore& core) {
   core.row_fatigue.assign(rows, 0.0);
   core.row_history_changed.assign(rows, 1); // the states may all be new
   const bool per_bar = core.table.per_bar();
-  for (std::size_t r = 0; r < rows; ++r) {
+  const auto n_rows = static_cast<std::int64_t>(rows);
+#pragma omp parallel for schedule(static) if (core.lat.num_bars() > kParallelMinItems)
+  for (std::int64_t r = 0; r < n_rows; ++r) {
     const index_t b0 = core.first_bar(r);
     const typename Law::Row constants = Law::row(core.table, core.layout.bar_rows[r].family, b0);
     const auto states = core.template row_states<kStates>(r);
@@ -81,9 +83,13 @@ template <class Law>
 void init_states(SimulationCore& core, const std::vector<index_t>& precracked) {
   constexpr std::size_t kStates = Law::kStateArrays.size();
   const index_t nb = core.lat.num_bars();
-  core.states.assign(kStates, std::vector<double>(core.layout.state_count));
+  core.states.resize(kStates);
+  for (std::vector<double>& a : core.states)
+    a.assign(core.layout.state_count, 0.0);
   const bool per_bar = core.table.per_bar();
-  for (std::size_t r = 0; r < core.layout.bar_rows.size(); ++r) {
+  const auto rows = static_cast<std::int64_t>(core.layout.bar_rows.size());
+#pragma omp parallel for schedule(static) if (std::int64_t{nb} > kParallelMinItems)
+  for (std::int64_t r = 0; r < rows; ++r) {
     const index_t b0 = core.first_bar(r);
     const typename Law::Row constants = Law::row(core.table, core.layout.bar_rows[r].family, b0);
     const auto states = core.template row_states<kStates>(r);

@@ -6,6 +6,7 @@
 #include "util/error.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <fmt/format.h>
 #include <omp.h>
@@ -122,7 +123,15 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   if (!(c.opt.damping >= 0.0) || !std::isfinite(c.opt.damping))
     throw InputError(
         fmt::format("damping: expected a coefficient >= 0 in 1/s, got {:g}", c.opt.damping));
+  const auto setup_start = std::chrono::steady_clock::now();
+  const auto done = [&](const std::string& phase) {
+    if (c.opt.setup_progress)
+      c.opt.setup_progress(phase, std::chrono::duration<double>(std::chrono::steady_clock::now() -
+                                                               setup_start)
+                                      .count());
+  };
   c.layout = build_step_layout(c.lat, c.table, law_->elastic_limits(c.table));
+  done("step layout");
   const std::size_t slots = c.layout.slot_count;
   // Masses and held DOF by node number while the step is set up, then in the slots only.
   std::vector<double> mass = lumped_masses(c.lat, c.table.spec().rho, c.table.rho_module());
@@ -131,7 +140,10 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   // The nodes of a shaped body's box that no present module has: no mass and no bar with a
   // stiffness, held where they are (a unit mass keeps the arithmetic finite; its node never
   // moves, so it adds no energy).
-  for (index_t n = 0; n < c.lat.num_nodes(); ++n) {
+  const auto nodes = static_cast<std::int64_t>(c.lat.num_nodes());
+#pragma omp parallel for schedule(static) if (nodes > kParallelMinItems)
+  for (std::int64_t m = 0; m < nodes; ++m) {
+    const auto n = static_cast<index_t>(m);
     if (!(mass[n] > 0.0))
       mass[n] = 1.0;
     if (const std::size_t q = c.slot(n); c.layout.stored(q)) {
@@ -145,17 +157,25 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
     std::fill(c.inv_mass.begin() + static_cast<std::ptrdiff_t>(c.layout.zero_slot),
               c.inv_mass.end(), 1.0);
   }
-  for (AlignedVector<double>* u : {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz})
-    u->assign(slots, 0.0);
+  done("masses");
+  // (The six arrays' pages touched by the threads together.)
+  AlignedVector<double>* const arrays[] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
+#pragma omp parallel for schedule(dynamic) if (slots > kParallelMinItems)
+  for (int a = 0; a < 6; ++a)
+    arrays[a]->assign(slots, 0.0);
+  done("displacements");
   set_platen_stiffness(c.table.ranges().E[1], c.table.ranges().rho[0]);
   const std::vector<DofMask> held = build_boundary(c);
+  done("supports and loads");
   if (!c.opt.defer_time_step) {
     c.stable = with_platens(compute_stable_step(c.lat, c.table, mass, held), c.cond);
     c.dt = time_step_by_rule(c.opt.step, c.stable, c.table.ranges().E[1], c.table.ranges().rho[0],
                              c.lat.L(), c.opt.damping);
+    done(fmt::format("stable step ({} Lanczos iterations)", c.stable.iterations));
   }
   law_->init_states(c, precracked);
   law_->mark_damaged_rows(c);
+  done("bar states");
   // The intact fast path: nothing is known of the strains or the motion before the first step.
   // (Without AVX-512 it would take a square root and a division for every bar at each end:
   // slower than the bar pass, so it is off.)
@@ -195,6 +215,7 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   c.thread_events.resize(static_cast<std::size_t>(c.threads));
   for (auto& ev : c.thread_events)
     ev.reserve(1024);
+  done("buffers");
 }
 
 Simulation::~Simulation() = default;

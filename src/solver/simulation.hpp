@@ -139,6 +139,9 @@ struct SolverOptions {
   bool intact_at_nodes = true;
   // The bar law's kernels (solver/law_kernels.hpp); nullptr: the paper's bilinear law.
   const LawKernels* law = nullptr;
+  // Told as the set-up goes through its phases: the phase just done and the seconds since the
+  // set-up began (a progress line for a large body); empty: nothing.
+  std::function<void(const std::string& phase, double seconds)> setup_progress;
 };
 
 // dt by the rule of `step`: a fraction of the stable step, given, or the paper's Courant

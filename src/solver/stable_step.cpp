@@ -11,34 +11,75 @@ namespace ldem {
 
 namespace {
 
-// Undamaged axial stiffness EA / l0 of every bar (including the boundary area factor).
-std::vector<double> bar_stiffness(const Lattice& lat, const BarTable& table) {
+// Undamaged axial stiffness EA / l0 of every bar (including the boundary area factor): a
+// per-bar table's own array, else `own` filled from the families' (planes of bars in parallel);
+// nullptr for a box of one material, whose rows of links take their stiffness from UnitLinks.
+const double* bar_stiffness(const Lattice& lat, const BarTable& table, std::vector<double>& own) {
   if (table.per_bar())
-    return table.k_bar();
-  std::vector<double> k(lat.num_bars());
+    return table.k_bar().data();
+  if (!lat.shaped())
+    return nullptr;
+  own.resize(lat.num_bars());
   for (int f = 0; f < kFamilies; ++f) {
     const FamilyInfo& fi = lat.family(f);
     const double kf = table.family(f).k;
-    for (index_t kk = 0; kk < fi.nk; ++kk)
+    const auto planes = static_cast<std::int64_t>(fi.nk);
+#pragma omp parallel for schedule(static) if (std::int64_t{fi.ni} * fi.nj * fi.nk > kParallelMinItems)
+    for (std::int64_t kk = 0; kk < planes; ++kk)
       for (index_t j = 0; j < fi.nj; ++j)
         for (index_t i = 0; i < fi.ni; ++i)
-          k[lat.bar(static_cast<Family>(f), i, j, kk)] =
-              kf * lat.area_factor(static_cast<Family>(f), i, j, kk);
+          own[lat.bar(static_cast<Family>(f), i, j, static_cast<index_t>(kk))] =
+              kf * lat.area_factor(static_cast<Family>(f), i, j, static_cast<index_t>(kk));
   }
-  return k;
+  return own.data();
 }
 
+// A row's links with their unit vectors (each r0 / |r0|) and their bars' stiffness: `kb`'s, or
+// without it (a box of one material) the family's k times the bar's area factor, which along a
+// link's bars changes only at its first and last (the body's faces across x): those two and
+// one for the bars between, the numbers bar_stiffness would store.
+struct UnitLinks {
+  RowLink links[kMaxRowLinks];
+  double e[kMaxRowLinks][3];
+  double k_first[kMaxRowLinks], k_inner[kMaxRowLinks], k_last[kMaxRowLinks];
+  const double* kb;
+  int count = 0;
+  UnitLinks(const Lattice& lat, const BarTable& table, const double* kb_, const NodeRow& row)
+      : kb(kb_), count(row_links(lat, row, links)) {
+    for (int l = 0; l < count; ++l) {
+      const RowLink& L = links[l];
+      const Vec3& r = L.r0;
+      const double len = std::sqrt(r.x * r.x + r.y * r.y + r.z * r.z);
+      e[l][0] = r.x / len;
+      e[l][1] = r.y / len;
+      e[l][2] = r.z / len;
+      if (kb || L.ihi <= L.ilo)
+        continue;
+      const auto k_of = [&](index_t i) {
+        const BarAddress a = lat.bar_address(static_cast<index_t>(L.bar_base + i));
+        return table.family(static_cast<int>(a.family)).k *
+               lat.area_factor(a.family, a.i, a.j, a.k);
+      };
+      k_first[l] = k_of(L.ilo);
+      k_last[l] = k_of(L.ihi - 1);
+      k_inner[l] = L.ihi - L.ilo > 2 ? k_of(L.ilo + 1) : k_first[l];
+    }
+  }
+  // The stiffness of the bar of link l at node i of the row.
+  double k(int l, index_t i) const {
+    if (kb)
+      return kb[static_cast<std::size_t>(links[l].bar_base + i)];
+    return i == links[l].ilo ? k_first[l] : i + 1 == links[l].ihi ? k_last[l] : k_inner[l];
+  }
+};
+
 // Calls f(other node, unit vector towards it, bar stiffness) for every bar of node i of a row.
-template <class F>
-void for_each_bar_of(index_t i, const RowLink* links, int nl, const std::vector<double>& kb,
-                     F&& f) {
-  for (int l = 0; l < nl; ++l) {
-    const RowLink& L = links[l];
+template <class F> void for_each_bar_of(index_t i, const UnitLinks& u, F&& f) {
+  for (int l = 0; l < u.count; ++l) {
+    const RowLink& L = u.links[l];
     if (i < L.ilo || i >= L.ihi)
       continue;
-    const double len = std::sqrt(L.r0.x * L.r0.x + L.r0.y * L.r0.y + L.r0.z * L.r0.z);
-    const double e[3] = {L.r0.x / len, L.r0.y / len, L.r0.z / len};
-    f(static_cast<index_t>(L.other_base + i), e, kb[static_cast<std::size_t>(L.bar_base + i)]);
+    f(static_cast<index_t>(L.other_base + i), u.e[l], u.k(l, i));
   }
 }
 
@@ -80,7 +121,8 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
                                const std::vector<double>& mass,
                                const std::vector<unsigned char>& held_given,
                                const StableStepParts* parts) {
-  const std::vector<double> kb = bar_stiffness(lat, table);
+  std::vector<double> kb_own;
+  const double* const kb = bar_stiffness(lat, table, kb_own);
   const std::size_t n = lat.num_nodes();
   // The rows of nodes this process owns (a row along x is never split between processes).
   std::vector<NodeRow> rows = node_rows(lat);
@@ -92,7 +134,8 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
   // 1 / sqrt(m) and the held DOF of every node; a ghost node's from its owner.
   std::vector<double> rsm(n);
   std::vector<unsigned char> held(n, 0);
-  for (std::size_t i = 0; i < n; ++i) {
+#pragma omp parallel for schedule(static) if (n > kParallelMinItems)
+  for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
     rsm[i] = 1.0 / std::sqrt(mass[i]);
     held[i] = held_given.empty() ? 0 : held_given[i];
   }
@@ -129,36 +172,41 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
     });
     if (parts)
       parts->exchange(scaled);
+    // Link by link along the row, each node's terms added in the order of its links (the
+    // numbers of a loop over each node's links), into the row's sums.
     for_owned([&](const NodeRow& row) {
-      RowLink links[kMaxRowLinks];
-      const int nl = row_links(lat, row, links);
+      const UnitLinks u(lat, table, kb, row);
+      thread_local std::vector<double> acc;
+      acc.assign(3 * std::size_t{row.length}, 0.0);
+      const double* const s = scaled.data();
+      for (int l = 0; l < u.count; ++l) {
+        const RowLink& L = u.links[l];
+        const double e0 = u.e[l][0], e1 = u.e[l][1], e2 = u.e[l][2];
+        for (index_t i = L.ilo; i < L.ihi; ++i) {
+          const std::size_t a = 3 * (std::size_t{row.first} + i),
+                            b = 3 * static_cast<std::size_t>(L.other_base + i);
+          double proj = 0.0;
+          proj += e0 * (s[a] - s[b]);
+          proj += e1 * (s[a + 1] - s[b + 1]);
+          proj += e2 * (s[a + 2] - s[b + 2]);
+          const double kp = u.k(l, i) * proj;
+          acc[3 * i] += kp * e0;
+          acc[3 * i + 1] += kp * e1;
+          acc[3 * i + 2] += kp * e2;
+        }
+      }
       for (index_t i = 0; i < row.length; ++i) {
         const index_t node = row.first + i;
-        double acc[3] = {0, 0, 0};
-        for_each_bar_of(i, links, nl, kb, [&](index_t other, const double* e, double k) {
-          double proj = 0.0;
-          for (int d = 0; d < 3; ++d)
-            proj += e[d] * (scaled[3 * node + d] - scaled[3 * other + d]);
-          for (int d = 0; d < 3; ++d)
-            acc[d] += k * proj * e[d];
-        });
         for (int d = 0; d < 3; ++d)
-          y[3 * node + d] = acc[d] * rsm[node] * free_dof(node, d);
+          y[3 * node + d] = acc[3 * i + d] * rsm[node] * free_dof(node, d);
       }
     });
   };
   // a . b over the owned nodes: each row's products added in order along it, the rows' sums
   // exactly (and with the other processes' rows), whatever their order.
   std::vector<double> row_sums(rows.size());
-  auto dot = [&](const std::vector<double>& a, const std::vector<double>& b) {
-#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
-    for (std::int64_t r = 0; r < nrows; ++r) {
-      double s = 0.0;
-      const std::size_t q0 = 3 * std::size_t{rows[r].first};
-      for (std::size_t q = q0; q < q0 + 3 * std::size_t{rows[r].length}; ++q)
-        s += a[q] * b[q];
-      row_sums[r] = s;
-    }
+  // The rows' sums in row_sums, added exactly.
+  const auto sum_rows = [&] {
     // Scaled by a power of two below the largest row's sum of all processes, into the fixed
     // point's range (ExactSum is made for energies in J; these sums can reach 1e30).
     double largest = 0.0;
@@ -175,17 +223,30 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       parts->sum(total);
     return std::ldexp(total.value(), e);
   };
+  auto dot = [&](const std::vector<double>& a, const std::vector<double>& b) {
+#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
+    for (std::int64_t r = 0; r < nrows; ++r) {
+      double s = 0.0;
+      const std::size_t q0 = 3 * std::size_t{rows[r].first};
+      for (std::size_t q = q0; q < q0 + 3 * std::size_t{rows[r].length}; ++q)
+        s += a[q] * b[q];
+      row_sums[r] = s;
+    }
+    return sum_rows();
+  };
 
   StableStep out;
-  // Gershgorin: every eigenvalue lies below the largest absolute row sum.
+  // Gershgorin: every eigenvalue lies below the largest absolute row sum (the rows in parallel:
+  // a largest value is the same whatever the order).
   double bound = 0.0;
-  for (const NodeRow& row : rows) {
-    RowLink links[kMaxRowLinks];
-    const int nl = row_links(lat, row, links);
+#pragma omp parallel for schedule(static) reduction(max : bound) if (3 * n > kParallelMinItems)
+  for (std::int64_t r = 0; r < nrows; ++r) {
+    const NodeRow& row = rows[r];
+    const UnitLinks u(lat, table, kb, row);
     for (index_t i = 0; i < row.length; ++i) {
       const index_t node = row.first + i;
       double diag[3][3] = {}, off[3] = {};
-      for_each_bar_of(i, links, nl, kb, [&](index_t other, const double* e, double k) {
+      for_each_bar_of(i, u, [&](index_t other, const double* e, double k) {
         const double eo = std::abs(e[0]) * free_dof(other, 0) +
                           std::abs(e[1]) * free_dof(other, 1) + std::abs(e[2]) * free_dof(other, 2);
         for (int p = 0; p < 3; ++p) {
@@ -208,7 +269,8 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
   // Lanczos from a start vector drawn per DOF of the body (a hash of its number), the same
   // whichever process holds the node.
   std::vector<double> q(3 * n), q_prev(3 * n, 0.0), w(3 * n, 0.0);
-  for (std::size_t node = 0; node < n; ++node) {
+#pragma omp parallel for schedule(static) if (n > kParallelMinItems)
+  for (std::int64_t node = 0; node < static_cast<std::int64_t>(n); ++node) {
     const std::uint64_t g = parts ? parts->global_node[node] : node;
     for (int d = 0; d < 3; ++d) {
       std::uint64_t z = (3 * g + static_cast<std::uint64_t>(d) + 1) * 0x9E3779B97F4A7C15ull;
@@ -226,17 +288,30 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
   double theta = 0.0, theta_prev = 0.0;
   const int max_iter = 400;
   int stable_iters = 0;
+  // w -= a q + b_prev q_prev on the owned rows, and w . w summed as dot() sums (row by row,
+  // each row in order), in one pass.
+  const auto update_and_norm = [&](double a, double b_prev) {
+#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
+    for (std::int64_t r = 0; r < nrows; ++r) {
+      double s = 0.0;
+      const std::size_t q0 = 3 * std::size_t{rows[r].first};
+      for (std::size_t i = q0; i < q0 + 3 * std::size_t{rows[r].length}; ++i) {
+        w[i] -= a * q[i] + b_prev * q_prev[i];
+        s += w[i] * w[i];
+      }
+      row_sums[r] = s;
+    }
+    return sum_rows();
+  };
   for (int it = 0; it < max_iter; ++it) {
     apply(q, w);
     const double a = dot(w, q);
     const double b_prev = beta.back();
-#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(w.size()); ++i)
-      w[i] -= a * q[i] + b_prev * q_prev[i];
+    const double ww = update_and_norm(a, b_prev);
     alpha.push_back(a);
     theta = tridiagonal_max_eigenvalue(alpha, beta);
     out.iterations = it + 1;
-    const double b = std::sqrt(dot(w, w));
+    const double b = std::sqrt(ww);
     if (it > 0 && std::abs(theta - theta_prev) <= 1e-7 * theta) {
       if (++stable_iters >= 5)
         break;
@@ -247,11 +322,10 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
     if (!(b > 1e-14 * theta))
       break; // invariant subspace found: theta is exact
     beta.push_back(b);
+    std::swap(q_prev, q); // q = w / b, where q_prev was
 #pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(w.size()); ++i) {
-      q_prev[i] = q[i];
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(w.size()); ++i)
       q[i] = w[i] / b;
-    }
   }
   out.omega_max = std::sqrt(theta);
   out.dt = 2.0 / out.omega_max;
