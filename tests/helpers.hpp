@@ -52,6 +52,18 @@ inline std::vector<Vec3> minus_energy_gradient(Simulation& sim, double h) {
   return g;
 }
 
+// The affine displacement u = eps X at every node of `lat`.
+inline std::vector<Vec3> affine_field(const Lattice& lat, const double (&eps)[3][3]) {
+  std::vector<Vec3> u(lat.num_nodes());
+  for (index_t n = 0; n < lat.num_nodes(); ++n) {
+    const Vec3 X = lat.position(n);
+    u[n] = {eps[0][0] * X.x + eps[0][1] * X.y + eps[0][2] * X.z,
+            eps[1][0] * X.x + eps[1][1] * X.y + eps[1][2] * X.z,
+            eps[2][0] * X.x + eps[2][1] * X.y + eps[2][2] * X.z};
+  }
+  return u;
+}
+
 inline NodeSet face(const Lattice& lat, Face f) {
   return make_node_set(face_name(f), select_face(lat, f), "face " + face_name(f));
 }

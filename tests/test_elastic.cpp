@@ -12,6 +12,7 @@
 namespace ldem {
 namespace {
 
+using testing::affine_field;
 using testing::make_sim;
 using testing::unit_material;
 
@@ -101,14 +102,9 @@ TEST(Elastic, NodeStressesAreTheIsotropicStressOfAnAffineStrain) {
   const Lattice& lat = sim.lattice();
   const double eps[3][3] = {
       {2e-6, 0.7e-6, -0.4e-6}, {0.7e-6, -1e-6, 0.9e-6}, {-0.4e-6, 0.9e-6, 1.5e-6}};
-  std::vector<Vec3> u(lat.num_nodes());
-  for (index_t n = 0; n < lat.num_nodes(); ++n) {
-    const Vec3 X = lat.position(n);
-    u[n] = {eps[0][0] * X.x + eps[0][1] * X.y + eps[0][2] * X.z,
-            eps[1][0] * X.x + eps[1][1] * X.y + eps[1][2] * X.z,
-            eps[2][0] * X.x + eps[2][1] * X.y + eps[2][2] * X.z};
+  const std::vector<Vec3> u = affine_field(lat, eps);
+  for (index_t n = 0; n < lat.num_nodes(); ++n)
     sim.set_displacement(n, u[n]);
-  }
   std::vector<std::uint8_t> state;
   std::vector<double> damage, force, stress;
   sim.bar_snapshot(state, damage, force);
@@ -145,13 +141,7 @@ TEST(Elastic, NodeStrainsAreTheMeanGradientOfTheModules) {
   const double eps[3][3] = {
       {2e-6, 0.7e-6, -0.4e-6}, {0.2e-6, -1e-6, 0.9e-6}, {-0.8e-6, 0.3e-6, 1.5e-6}};
   const int p_of[6] = {0, 1, 2, 0, 1, 0}, q_of[6] = {0, 1, 2, 1, 2, 2};
-  std::vector<Vec3> u(lat.num_nodes());
-  for (index_t n = 0; n < lat.num_nodes(); ++n) {
-    const Vec3 X = lat.position(n);
-    u[n] = {eps[0][0] * X.x + eps[0][1] * X.y + eps[0][2] * X.z,
-            eps[1][0] * X.x + eps[1][1] * X.y + eps[1][2] * X.z,
-            eps[2][0] * X.x + eps[2][1] * X.y + eps[2][2] * X.z};
-  }
+  std::vector<Vec3> u = affine_field(lat, eps);
   std::vector<double> strain;
   node_strains(lat, u, strain);
   ASSERT_EQ(strain.size(), 6 * std::size_t{lat.num_nodes()});

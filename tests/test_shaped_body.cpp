@@ -26,6 +26,7 @@
 namespace ldem {
 namespace {
 
+using testing::affine_field;
 using testing::all_state;
 using testing::make_sim;
 using testing::minus_energy_gradient;
@@ -76,13 +77,7 @@ TEST(ShapedBody, NodeStrainsOfAnAffineFieldAreItsStrainAtEveryPresentNode) {
   const Lattice lat = l_shape(0.01);
   const double eps[3][3] = {{1e-6, 2e-6, 0.0}, {-1e-6, 0.5e-6, 0.3e-6}, {0.6e-6, 0.1e-6, -2e-6}};
   const int p_of[6] = {0, 1, 2, 0, 1, 0}, q_of[6] = {0, 1, 2, 1, 2, 2};
-  std::vector<Vec3> u(lat.num_nodes());
-  for (index_t n = 0; n < lat.num_nodes(); ++n) {
-    const Vec3 X = lat.position(n);
-    u[n] = {eps[0][0] * X.x + eps[0][1] * X.y + eps[0][2] * X.z,
-            eps[1][0] * X.x + eps[1][1] * X.y + eps[1][2] * X.z,
-            eps[2][0] * X.x + eps[2][1] * X.y + eps[2][2] * X.z};
-  }
+  std::vector<Vec3> u = affine_field(lat, eps);
   std::vector<double> strain;
   node_strains(lat, u, strain);
   int present = 0;

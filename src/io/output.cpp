@@ -626,12 +626,19 @@ void LatticeVtuWriter::write(const Simulation& sim, const std::string& path) {
     }
   }
   sim.bar_snapshot(state_, damage_, force_, &strain_);
+  // (The modules' buffer kept from snapshot to snapshot: only present modules are written and
+  // read.)
+  const Lattice& lat = sim.lattice();
   if (present_[VtuLayout::Stress]) {
-    node_stresses(sim.lattice(), u_all_, force_, tensor_);
+    module_.resize(6 * std::size_t{lat.num_modules()});
+    module_stresses(lat, u_all_, force_, module_);
+    node_means(lat, module_, tensor_);
     stress_f_.assign(tensor_.begin(), tensor_.end());
   }
   if (present_[VtuLayout::NodeStrain]) {
-    node_strains(sim.lattice(), u_all_, tensor_);
+    module_.resize(6 * std::size_t{lat.num_modules()});
+    module_strains(lat, u_all_, module_);
+    node_means(lat, module_, tensor_);
     node_strain_f_.assign(tensor_.begin(), tensor_.end());
   }
   const auto nb = static_cast<std::ptrdiff_t>(nb_);

@@ -174,7 +174,7 @@ private:
   std::vector<char> static_block_;
   std::vector<float> disp_, vel_, damage_f_, force_f_, strain_f_, stress_f_, node_strain_f_;
   std::vector<Vec3> u_all_;    // every node's displacement, for the stress and strain
-  std::vector<double> tensor_; // the stress or strain at every node
+  std::vector<double> module_, tensor_; // the stress or strain of every module, of every node
   std::vector<std::uint8_t> state_;
   std::vector<double> damage_, force_, strain_;
   std::vector<std::size_t> law_states_; // the law's state arrays written (VtuLayout::states)
