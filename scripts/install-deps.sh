@@ -12,6 +12,8 @@ PKGS=(
   libeigen3-dev                    # ldem modes: sparse matrices and their factorisation
   libspectra-dev                   # ldem modes: Lanczos shift-invert eigen-solver (lowest modes)
   python3-matplotlib python3-numpy # PNG plots of a run
+  pybind11-dev python3-dev         # the Python module (python/)
+  python3-pytest                   # tests: the Python module's suite
   python3-vtk9                     # tests: an independent reader of the VTU/PVD output
   libgtest-dev libgmock-dev        # tests
   libbenchmark-dev                 # microbenchmarks (bench/micro.cpp)

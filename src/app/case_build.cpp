@@ -330,9 +330,9 @@ void setup_progress_line(const std::string& phase, double seconds) {
 }
 
 BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&)>& adjust,
-                     bool with_simulation) {
+                     bool with_simulation, const std::string* text) {
   BuiltCase c;
-  c.spec = read_case(path);
+  c.spec = text ? parse_case(*text, path) : read_case(path);
   if (adjust)
     adjust(c.spec);
   const CaseSpec& s = c.spec;

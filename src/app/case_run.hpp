@@ -102,10 +102,11 @@ std::string located(const CaseSpec& s, const std::string& path, const std::strin
 // Builds everything a run needs; bad input throws InputError naming the case file. `adjust`,
 // if given, changes the case after it is read (ensemble perturbations). Without
 // `with_simulation`, sim stays empty (the processes of a distributed run other than the first
-// build only their subdomain).
+// build only their subdomain). With `text`, the case is that text and `path` only names it (in
+// messages, and its folder is where relative file names start).
 BuiltCase build_case(const std::string& path,
                      const std::function<void(CaseSpec&)>& adjust = nullptr,
-                     bool with_simulation = true);
+                     bool with_simulation = true, const std::string* text = nullptr);
 
 struct RunOptions {
   std::string out_dir;
@@ -117,6 +118,10 @@ struct RunOptions {
   // Under mpirun: the processes along y and z (0 0: the grid that cuts the least).
   int grid_y = 0, grid_z = 0;
   std::function<void(CaseSpec&)> adjust; // applied to the case after reading (ensembles)
+  // A case given as text (the Python module's cases from strings and dicts): the run is built
+  // from it, `path` naming it in messages, and writes it as case.toml in the output folder,
+  // the file that the run's summary names and a resume reads.
+  std::optional<std::string> case_text;
 };
 
 int check_command(const std::string& path);

@@ -217,7 +217,8 @@ int run_command(const std::string& path, const RunOptions& o) {
   // The first process builds the whole body (its time step, the outputs' copy) and prepares
   // the folder; the others only what their subdomains need.
   if (!agreed([&] {
-        c = build_case(path, o.adjust, process_count() == 1);
+        c = build_case(path, o.adjust, process_count() == 1,
+                       o.case_text ? &*o.case_text : nullptr);
         if (process_count() > 1) // a body too thin to split is refused before any output
           try {
             grid = resolve_grid(c.lattice->ny(), c.lattice->nz(), process_count(),
@@ -238,7 +239,8 @@ int run_command(const std::string& path, const RunOptions& o) {
   const std::string dir = o.out_dir + "/";
   RunState st;
   // The case as one path, however it was typed (./a/../case.toml, a link).
-  st.case_path = fs::weakly_canonical(fs::absolute(path)).string();
+  st.case_path =
+      fs::weakly_canonical(fs::absolute(o.case_text ? dir + "case.toml" : path)).string();
   st.plots = o.plots;
   st.checkpoint_every = o.checkpoint_every >= 0 ? static_cast<std::uint64_t>(o.checkpoint_every)
                                                 : c.spec.output.checkpoint_every;
@@ -260,7 +262,9 @@ int run_command(const std::string& path, const RunOptions& o) {
     if (c.lattice->shaped())
       write_file(dir + "body.npy", module_mask_npy(*c.lattice));
     st.resolved_hash = checkpoint::fnv1a(resolved.data(), resolved.size());
-    const std::string text = read_all(path);
+    if (o.case_text)
+      write_file(dir + "case.toml", *o.case_text);
+    const std::string text = o.case_text ? *o.case_text : read_all(path);
     st.case_hash = checkpoint::fnv1a(text.data(), text.size());
     if (process_count() > 1)
       fmt::print(stderr, "ldem: {}\n", describe_decomposition(*c.lattice, grid));

@@ -66,7 +66,7 @@ void RunBody::control_factors(std::uint64_t step, const std::vector<double>& gau
 double RunBody::load_probe(const ProbeSpec& p, double t) const {
   for (std::size_t i = 0; i < c_.spec.loads.size(); ++i)
     if (c_.spec.loads[i].name == p.load)
-      return load_total_force(c_, i, t);
+      return load_total_force(c_, i, t) * sim().load_factor(i); // (a script's factor)
   return 0.0;
 }
 

@@ -132,7 +132,8 @@ protected:
 
   // The events kept in events_, in (step, bar) order; none are kept after.
   std::vector<Event> take_kept_events();
-  // A probe's value that needs no simulation: the total of a load at time t.
+  // A probe's value that needs no simulation: the total of a load at time t (times the factor
+  // a script set on it, Simulation::set_load_factor).
   double load_probe(const ProbeSpec& p, double t) const;
   // The index of the platen named `name` in the case's platens (Conditions::platens).
   std::size_t platen_index(const std::string& name) const;

@@ -110,13 +110,20 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
   return held;
 }
 
+namespace {
+// A script's factor on condition c (1 while none was set: x * 1 is x, bit for bit).
+double factor_of(const std::vector<double>& factors, std::size_t c) {
+  return c < factors.size() ? factors[c] : 1.0;
+}
+} // namespace
+
 void apply_loads(SimulationCore& core, double t, bool always) {
   // Loads whose time functions give the values of the last step give the same forces: kept
   // (a constant body force on every node would otherwise cost a pass over the body each step).
   std::vector<double>& last = core.bc.load_scales;
   bool same = last.size() == core.cond.loads.size();
   for (std::size_t c = 0; c < core.cond.loads.size(); ++c) {
-    const double s = core.cond.loads[c].scale(t);
+    const double s = core.cond.loads[c].scale(t) * factor_of(core.bc.load_factors, c);
     same = same && last[c] == s;
     if (last.size() < core.cond.loads.size())
       last.push_back(s);
@@ -130,7 +137,7 @@ void apply_loads(SimulationCore& core, double t, bool always) {
       core.px[q] = core.py[q] = core.pz[q] = 0.0;
   for (std::size_t c = 0; c < core.cond.loads.size(); ++c) {
     const NodalLoad& load = core.cond.loads[c];
-    const double s = load.scale(t);
+    const double s = load.scale(t) * factor_of(core.bc.load_factors, c);
     const std::vector<std::size_t>& slots = core.bc.load_slots[c];
     for (std::size_t i = 0; i < slots.size(); ++i) {
       const double w = s * load.weight_of(i);
@@ -150,10 +157,11 @@ void apply_velocities(SimulationCore& core, double t, bool report) {
   for (std::size_t c = 0; c < core.cond.velocities.size(); ++c) {
     const ImposedVelocity& iv = core.cond.velocities[c];
     const double s =
-        iv.control < 0 ? iv.scale(t + 0.5 * dt)
-                       : (static_cast<std::size_t>(iv.control) < core.bc.control_factors.size()
-                              ? core.bc.control_factors[static_cast<std::size_t>(iv.control)]
-                              : 0.0);
+        (iv.control < 0 ? iv.scale(t + 0.5 * dt)
+                        : (static_cast<std::size_t>(iv.control) < core.bc.control_factors.size()
+                               ? core.bc.control_factors[static_cast<std::size_t>(iv.control)]
+                               : 0.0)) *
+        factor_of(core.bc.velocity_factors, c);
     const double target[3] = {s * iv.velocity.x, s * iv.velocity.y, s * iv.velocity.z};
     for (std::size_t q = 0; q < iv.set.nodes.size(); ++q) {
       const std::size_t p = core.bc.velocity_slots[c][q];

@@ -72,6 +72,9 @@ struct Boundary {
   std::vector<double> load_scales;
   // The factors of the controlled velocities (Simulation::set_control_factors).
   std::vector<double> control_factors;
+  // Factors a script sets on the velocities and loads (Simulation::set_velocity_factor,
+  // set_load_factor), one per condition; empty while none has been set (all 1).
+  std::vector<double> velocity_factors, load_factors;
   // The platens (Conditions::platens), and the terms of the step's report: the platens' work
   // less the work of their contact forces on the body before t_n, and the springs' energy.
   std::vector<PlatenState> platens;

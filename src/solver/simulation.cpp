@@ -315,6 +315,31 @@ void Simulation::set_control_factors(std::span<const double> factors) {
   core_->bc.control_factors.assign(factors.begin(), factors.end());
 }
 
+namespace {
+void set_factor(std::vector<double>& factors, std::size_t count, std::size_t i, double factor,
+                const char* what) {
+  if (i >= count)
+    throw InputError(fmt::format("{} {}: expected an index below {}, got {}", what, i, count, i));
+  if (!std::isfinite(factor))
+    throw InputError(fmt::format("{} {}: expected a finite factor, got {}", what, i, factor));
+  factors.resize(count, 1.0);
+  factors[i] = factor;
+}
+} // namespace
+
+void Simulation::set_velocity_factor(std::size_t i, double factor) {
+  set_factor(core_->bc.velocity_factors, core_->cond.velocities.size(), i, factor, "velocity");
+}
+void Simulation::set_load_factor(std::size_t i, double factor) {
+  set_factor(core_->bc.load_factors, core_->cond.loads.size(), i, factor, "load");
+}
+double Simulation::velocity_factor(std::size_t i) const {
+  return i < core_->bc.velocity_factors.size() ? core_->bc.velocity_factors[i] : 1.0;
+}
+double Simulation::load_factor(std::size_t i) const {
+  return i < core_->bc.load_factors.size() ? core_->bc.load_factors[i] : 1.0;
+}
+
 void Simulation::set_velocity(const std::function<Vec3(Vec3)>& v_of_X) {
   for (index_t n = 0; n < core_->lat.num_nodes(); ++n) {
     const Vec3 v = v_of_X(core_->lat.position(n));

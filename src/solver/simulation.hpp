@@ -213,6 +213,14 @@ public:
   // next steps: a controller outside the step sets them before each step (app/run_body.hpp).
   // Before the first call they are 0.
   void set_control_factors(std::span<const double> factors);
+  // A factor on imposed velocity i (Conditions::velocities) or nodal load i (Conditions::loads)
+  // from the next step on, times what its time function (or control) gives: 0 stops it, -1
+  // turns it back (unloading). A script's way to change a loading between steps; 1 until set.
+  // Throws InputError for an index beyond the conditions or a factor that is not finite.
+  void set_velocity_factor(std::size_t i, double factor);
+  void set_load_factor(std::size_t i, double factor);
+  double velocity_factor(std::size_t i) const;
+  double load_factor(std::size_t i) const;
 
   // Platen p (Conditions::platens): the force of its contacts on the body at the start of the
   // last step [N], its displacement from where it was at t = 0 [m], and the nodes it touched
