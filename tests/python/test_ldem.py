@@ -304,3 +304,28 @@ def test_the_size_effect_example_coarsened(tmp_path):
     large = t["sigma_N_Pa"][t["W_modules"] == 40].mean()
     assert large < small
     assert "Bazant's law: B f_t = " in r.stdout
+
+
+def test_read_vtu_reads_compressed_snapshots_as_raw_ones(tmp_path):
+    # The same run with raw and with zlib-compressed snapshots: every array of the last
+    # snapshot read back equal, bit for bit (compression is lossless).
+    case = short_tutorial(tmp_path, end=2.0e-4, every=50, vtu=True)
+    d = ldem.load_case(case).to_dict()
+    ldem.run(d, out=tmp_path / "raw", threads=1, plots=False)
+    d["output"]["vtu_compression"] = "zlib"
+    ldem.run(d, out=tmp_path / "zlib", threads=1, plots=False)
+    raw = ldem.read_vtu(ldem.read_snapshots(tmp_path / "raw")[-1][1])
+    packed = ldem.read_vtu(ldem.read_snapshots(tmp_path / "zlib")[-1][1])
+    assert raw.keys() == packed.keys() and {"points", "displacement", "damage"} <= raw.keys()
+    for k in raw:
+        np.testing.assert_array_equal(raw[k], packed[k], err_msg=k)
+    assert np.abs(raw["displacement"]).max() > 0
+
+
+def test_run_until_stops_at_the_first_step_at_or_after_the_time():
+    sim = ldem.Simulation(TUTORIAL, threads=1)
+    sim.run_until(1.0e-4)
+    assert 1.0e-4 <= sim.time < 1.0e-4 + sim.dt
+    n = sim.step_count
+    sim.run_until(0.5e-4)  # already past: no step
+    assert sim.step_count == n
