@@ -1,6 +1,7 @@
 #include "solver/stable_step.hpp"
 
 #include "energy/exact_sum.hpp"
+#include "util/aligned.hpp"
 #include "util/parallel.hpp"
 
 #include <algorithm>
@@ -132,7 +133,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
                rows.end());
   const std::int64_t nrows = static_cast<std::int64_t>(rows.size());
   // 1 / sqrt(m) and the held DOF of every node; a ghost node's from its owner.
-  std::vector<double> rsm(n);
+  AlignedVector<double> rsm(n); // (large arrays: huge pages, util/aligned.hpp)
   std::vector<unsigned char> held(n, 0);
 #pragma omp parallel for schedule(static) if (n > kParallelMinItems)
   for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
@@ -162,7 +163,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
   // y = M^-1/2 K M^-1/2 x on the owned nodes (x, y interleaved: 3 per node), gathered per node
   // from M^-1/2 x on the free DOF (a ghost node's from its owner).
   std::vector<double> scaled(3 * n, 0.0);
-  auto apply = [&](const std::vector<double>& x, std::vector<double>& y) {
+  auto apply = [&](const AlignedVector<double>& x, AlignedVector<double>& y) {
     for_owned([&](const NodeRow& row) {
       for (index_t i = 0; i < row.length; ++i) {
         const index_t node = row.first + i;
@@ -223,7 +224,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       parts->sum(total);
     return std::ldexp(total.value(), e);
   };
-  auto dot = [&](const std::vector<double>& a, const std::vector<double>& b) {
+  auto dot = [&](const AlignedVector<double>& a, const AlignedVector<double>& b) {
 #pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
     for (std::int64_t r = 0; r < nrows; ++r) {
       double s = 0.0;
@@ -268,7 +269,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
 
   // Lanczos from a start vector drawn per DOF of the body (a hash of its number), the same
   // whichever process holds the node.
-  std::vector<double> q(3 * n), q_prev(3 * n, 0.0), w(3 * n, 0.0);
+  AlignedVector<double> q(3 * n), q_prev(3 * n, 0.0), w(3 * n, 0.0);
 #pragma omp parallel for schedule(static) if (n > kParallelMinItems)
   for (std::int64_t node = 0; node < static_cast<std::int64_t>(n); ++node) {
     const std::uint64_t g = parts ? parts->global_node[node] : node;

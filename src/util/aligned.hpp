@@ -3,23 +3,36 @@
 
 #include <cstddef>
 #include <new>
+#include <sys/mman.h>
 #include <vector>
 
 namespace ldem {
 
 inline constexpr std::size_t kCacheLine = 64;
 
+// Blocks of at least this size start on a 2 MiB boundary and ask the kernel for huge pages
+// (madvise MADV_HUGEPAGE; Linux's transparent huge pages are often enabled only where asked):
+// a large body's arrays are then touched in 2 MiB pages, 512 times fewer page faults when they
+// are first written (the set-up) and fewer TLB misses when the step streams them.
+inline constexpr std::size_t kHugePage = std::size_t{2} << 20;
+inline constexpr std::size_t kHugeBlock = 8 * kHugePage;
+
 // A std::allocator whose blocks start on a cache line: a 512-bit load or store at an index that
-// is a multiple of 8 then touches one line, not two.
+// is a multiple of 8 then touches one line, not two. Large blocks: see kHugeBlock.
 template <class T> struct CacheLineAllocator {
   using value_type = T;
   CacheLineAllocator() = default;
   template <class U> CacheLineAllocator(const CacheLineAllocator<U>&) noexcept {}
   T* allocate(std::size_t n) {
-    return static_cast<T*>(::operator new (n * sizeof(T), std::align_val_t{kCacheLine}));
+    const std::size_t bytes = n * sizeof(T);
+    if (bytes < kHugeBlock)
+      return static_cast<T*>(::operator new (bytes, std::align_val_t{kCacheLine}));
+    void* p = ::operator new (bytes, std::align_val_t{kHugePage});
+    madvise(p, bytes / kHugePage * kHugePage, MADV_HUGEPAGE); // (a hint: its own whole pages)
+    return static_cast<T*>(p);
   }
-  void deallocate(T* p, std::size_t) noexcept {
-    ::operator delete (p, std::align_val_t{kCacheLine});
+  void deallocate(T* p, std::size_t n) noexcept {
+    ::operator delete (p, std::align_val_t{n * sizeof(T) < kHugeBlock ? kCacheLine : kHugePage});
   }
   template <class U> bool operator==(const CacheLineAllocator<U>&) const noexcept { return true; }
 };
