@@ -617,5 +617,49 @@ TEST(BarTable, PerBarFieldsAgreeWithFamilyConstants) {
   EXPECT_THROW(BarTable(lat, m, bad), InputError);
 }
 
+// The step gives a row of bars one stiffness (and the intact fast path) when all its bars share
+// their E: then each bar's k_bar is the row's E A / l0 times the bar's area factor, the same
+// product in the same order, so equal to the bit. A field along z (rows run along x, each at
+// one height) or of Gf alone leaves every row one E; one along x leaves none; the uniform
+// material's rows have the family's k.
+TEST(BarTable, RowsOfOneModulusShareTheirStiffness) {
+  const Lattice lat(5, 2, 4, kPmmaL);
+  const MaterialSpec m = pmma();
+  const auto rows_of_one_k = [&](const BarTable& t) {
+    index_t rows = 0, shared = 0;
+    for (int f = 0; f < kFamilies; ++f) {
+      const FamilyInfo& fi = lat.family(f);
+      for (index_t k = 0; k < fi.nk; ++k)
+        for (index_t j = 0; j < fi.nj; ++j) {
+          ++rows;
+          const double rk = t.row_stiffness(f, j, k);
+          if (rk == 0.0)
+            continue;
+          ++shared;
+          for (index_t i = 0; i < fi.ni; ++i) {
+            const index_t b = lat.bar(static_cast<Family>(f), i, j, k);
+            EXPECT_EQ(t.stiffness(lat, b), rk * lat.area_factor(static_cast<Family>(f), i, j, k))
+                << "bar " << b;
+          }
+        }
+    }
+    return std::pair{rows, shared};
+  };
+  const BarTable uniform(lat, m);
+  const auto [rows, u_shared] = rows_of_one_k(uniform);
+  EXPECT_EQ(u_shared, rows);
+  EXPECT_EQ(uniform.row_stiffness(0, 0, 0), uniform.family(0).k);
+  BarFields along_z, along_x, toughness;
+  for (index_t b = 0; b < lat.num_bars(); ++b) {
+    const Vec3 c = lat.bar_centre(b);
+    along_z.E.push_back(m.E * (1.0 + 0.1 * c.z / kPmmaL));
+    along_x.E.push_back(m.E * (1.0 + 0.1 * c.x / kPmmaL));
+    toughness.Gf.push_back(m.Gf * (1.0 + 0.1 * static_cast<double>(b % 7)));
+  }
+  EXPECT_EQ(rows_of_one_k(BarTable(lat, m, along_z)).second, rows);
+  EXPECT_EQ(rows_of_one_k(BarTable(lat, m, toughness)).second, rows);
+  EXPECT_EQ(rows_of_one_k(BarTable(lat, m, along_x)).second, 0);
+}
+
 } // namespace
 } // namespace ldem

@@ -203,15 +203,20 @@ TEST(Fracture, EnergyBalanceHoldsThroughDynamicFracture) {
 // steps, so that rows change between reports and others do not. Every fifth report the VTU
 // snapshot's bar values too.
 TEST(Fracture, ReportEnergiesAndSnapshotsMatchTheBarLaw) {
-  for (bool per_bar : {false, true}) {
+  // 0: uniform; 1: graded along x (each bar its own stiffness); 2: graded along z (each row of
+  // bars one stiffness, the intact fast path with per-bar e_p).
+  for (int grading : {0, 1, 2}) {
+    SCOPED_TRACE(grading);
+    const bool per_bar = grading != 0;
     const NotchedPlate plate;
     const Lattice& lat = plate.lat;
     const MaterialSpec& m = plate.m;
     const double n = NotchedPlate::n;
     BarFields fields;
-    if (per_bar) // graded along x: E from 0.8 to 1.2, e_p and Gf likewise
+    if (per_bar) // E from 0.8 to 1.2, e_p and Gf likewise
       for (index_t b = 0; b < lat.num_bars(); ++b) {
-        const double g = 0.8 + 0.4 * lat.bar_centre(b).x / n;
+        const Vec3 c = lat.bar_centre(b);
+        const double g = 0.8 + 0.4 * (grading == 1 ? c.x : c.z) / n;
         fields.E.push_back(g * m.E);
         fields.e_p.push_back(g * *m.e_p);
         fields.Gf.push_back(g * m.Gf);
@@ -331,6 +336,7 @@ struct RunSettings {
   bool at_nodes = true;
   int report_every = 0; // 0: the run's own
   double* fast_share = nullptr;
+  const BarFields* fields = nullptr; // a material that varies per bar
 };
 
 // Steps `sim` while `more(step)`, reporting every `every` steps, noting the fast path's share.
@@ -410,7 +416,8 @@ std::vector<double> notched_cube_run(int threads, std::vector<Event>& events,
   o.block_lines = rs.block_lines;
   o.intact_at_nodes = rs.at_nodes;
   o.damping = 0.02;
-  Simulation sim = make_sim(n, n, n, 1.0, m, c, o, cut_bars(lat, notch, false).bars);
+  Simulation sim = make_sim(n, n, n, 1.0, m, c, o, cut_bars(lat, notch, false).bars,
+                            rs.fields ? *rs.fields : BarFields{});
   EXPECT_GT(static_cast<std::int64_t>(lat.num_bars()), kParallelMinItems);
   step_run(sim, 25, rs, [&] { return sim.time() < 60.0; });
   events = sim.take_events();
@@ -487,6 +494,37 @@ TEST(Fracture, IntactBarsAtTheNodesChangeNoResult) {
     expect_same_run(ref, e_ref, u, e, "cube, " + std::to_string(threads) + " threads");
     EXPECT_GT(share, 0.5) << "cube, " << threads << " threads: the fast path was hardly taken";
   }
+  // A material that varies per bar: E graded along z (each row of bars at one height, one E),
+  // e_p and Gf varying from bar to bar. Its rows take the fast path with their own stiffness and
+  // their bars' smallest e_p, and must give the bits of the law bar by bar; E graded along x
+  // instead leaves no row of one stiffness, and no row takes the fast path.
+  for (bool along_z : {true, false}) {
+    const std::string what = along_z ? "graded along z" : "graded along x";
+    const MaterialSpec m = unit_material(0.01, 3.0);
+    const Lattice lat(16, 16, 16, 1.0);
+    BarFields fields;
+    for (index_t b = 0; b < lat.num_bars(); ++b) {
+      const Vec3 c = lat.bar_centre(b);
+      fields.E.push_back(m.E * (0.8 + 0.025 * (along_z ? c.z : c.x)));
+      fields.e_p.push_back(*m.e_p * (1.0 + 0.05 * std::sin(0.7 * static_cast<double>(b))));
+      fields.Gf.push_back(m.Gf * (1.0 + 0.05 * std::cos(0.3 * static_cast<double>(b))));
+    }
+    std::vector<Event> f_ref;
+    const std::vector<double> graded =
+        notched_cube_run(1, f_ref, {.at_nodes = false, .fields = &fields});
+    EXPECT_GT(f_ref.size(), 20u) << what << ": the crack did not run";
+    for (int threads : {1, 2}) {
+      double share = 0.0;
+      std::vector<Event> e;
+      const std::vector<double> u =
+          notched_cube_run(threads, e, {.fast_share = &share, .fields = &fields});
+      expect_same_run(graded, f_ref, u, e, what + ", " + std::to_string(threads) + " threads");
+      if (along_z)
+        EXPECT_GT(share, 0.5) << what << ", " << threads << " threads: fast path hardly taken";
+      else
+        EXPECT_EQ(share, 0.0) << what << ", " << threads << " threads";
+    }
+  }
   std::vector<Event> p_ref;
   const std::vector<double> plate = thin_plate_run(1, p_ref, {.at_nodes = false});
   for (int threads : {1, 2}) {
@@ -515,8 +553,9 @@ TEST(Fracture, ReportingChangesNoMotion) {
 
 // A prism pulled so slowly that its bars creep up to e_p over a thousand steps while each
 // step moves a node by a hundredth of what the fast path allows: the bars take the fast path
-// while far from e_p, must leave it as they pass their watch length (l0 (1 + e_p / 2)), and
-// must soften and break at the same steps, to the bit, as without the fast path.
+// while below e_p, must leave it before their bound on the next step's length (the largest
+// (l / l_p)^2 the node kernel saw, plus the nodes' motion) reaches l_p, and must soften and
+// break at the same steps, to the bit, as without the fast path.
 std::vector<double> slow_prism_run(bool at_nodes, std::vector<Event>& events, double& share) {
   const MaterialSpec m = unit_material(0.01, 3.0);
   const Lattice lat(16, 3, 3, 1.0);

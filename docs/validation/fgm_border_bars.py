@@ -38,7 +38,7 @@ for ensemble in map(pathlib.Path, sys.argv[1:]):
           " | ".join(f"within {n} module{'s' if n > 1 else ''} of a pulled border" for n in BANDS) + " |")
     print("|---|---|---|" + "---|" * len(BANDS))
     for case in sorted(p for p in ensemble.iterdir() if p.is_dir()):
-        runs = sorted(case.glob("run_*"))
+        runs = sorted(p for p in case.glob("run_*") if p.is_dir())
         c = [counts(r) for r in runs]
         print(f"| {case.name} | {len(runs)} | " + " | ".join(cell([x[i] for x in c]) for i in range(1 + len(BANDS))) + " |")
     print()

@@ -206,6 +206,31 @@ BarTable::BarTable(const Lattice& lat, const MaterialSpec& spec, const BarFields
         ++s.bars_below_one;
     }
   }
+  if (!k_.empty()) {
+    // The rows whose bars share one E: E A / l0 as k_ has it before the area factor.
+    std::size_t rows = 0;
+    for (int f = 0; f < kFamilies; ++f) {
+      row_first_[static_cast<std::size_t>(f)] = rows;
+      row_nj_[static_cast<std::size_t>(f)] = lat.family(f).nj;
+      rows += static_cast<std::size_t>(lat.family(f).nj * lat.family(f).nk);
+    }
+    row_k_.assign(rows, 0.0);
+    for (int f = 0; f < kFamilies && !lat.shaped(); ++f) {
+      const FamilyInfo& fi = lat.family(f);
+      const FamilyMaterial& m = families_[f];
+      for (index_t k = 0; k < fi.nk; ++k)
+        for (index_t j = 0; j < fi.nj; ++j) {
+          const index_t b0 = fi.offset + fi.ni * (j + fi.nj * k);
+          bool same = true;
+          for (index_t i = 1; i < fi.ni && same && !fields.E.empty(); ++i)
+            same = fields.E[b0 + i] == fields.E[b0];
+          const double E = fields.E.empty() ? spec.E : fields.E[b0];
+          if (same && fi.ni > 0)
+            row_k_[row_first_[static_cast<std::size_t>(f)] +
+                   static_cast<std::size_t>(j + fi.nj * k)] = E * m.area / m.l0;
+        }
+    }
+  }
   if (any_below && spec.allow_low_kr) {
     // A brittle bar: e_r just above e_p (the law needs e_r > e_p), force to zero at the peak.
     auto brittle = [&](double& er, double ep) { er = std::max(er, ep * (1.0 + 1e-9)); };
@@ -250,6 +275,14 @@ BarTable::Properties BarTable::properties(const Lattice& lat, index_t bar) const
   const double EA = axial_stiffness(lat, bar);
   return {EA / (m.area * factor), 0.5 * EA * l.e_p * l.e_r * m.l0 / (m.area_f * factor), l.e_p,
           l.e_r};
+}
+
+double BarTable::row_stiffness(int family, index_t j, index_t k) const {
+  if (!per_bar())
+    return families_[family].k;
+  const auto f = static_cast<std::size_t>(family);
+  return row_k_[row_first_[f] + static_cast<std::size_t>(j) +
+                static_cast<std::size_t>(row_nj_[f]) * static_cast<std::size_t>(k)];
 }
 
 BilinearLaw BarTable::law(const Lattice& lat, index_t bar) const {

@@ -129,6 +129,12 @@ public:
   const std::vector<double>& k_bar() const { return k_; }
   const std::vector<double>& e_p_bar() const { return e_p_; }
   const std::vector<double>& e_r_bar() const { return e_r_; }
+  // The stiffness E A / l0 (area factor 1) shared by the bars of row (f, j, k) (i running):
+  // the family's where nothing varies per bar; where something does, the row's when every bar
+  // of it has the same E (a field along y or z, a Weibull Gf, e_p or e_r) in a box, so that
+  // k_bar of its bars is this times their area factors, bit for bit; 0 where E varies along
+  // the row or the body is shaped (the row's bars take their k_bar).
+  double row_stiffness(int family, index_t j, index_t k) const;
   // Density per module, or empty (uniform spec().rho).
   const std::vector<double>& rho_module() const { return rho_; }
 
@@ -154,6 +160,10 @@ private:
   MaterialSpec spec_;
   std::array<FamilyMaterial, kFamilies> families_{};
   std::vector<double> k_, e_p_, e_r_, rho_;
+  // Per bar row (per_bar() only): row_stiffness, rows of family f from row_first_[f] on.
+  std::vector<double> row_k_;
+  std::array<std::size_t, kFamilies> row_first_{};
+  std::array<index_t, kFamilies> row_nj_{};
   DuctilitySummary summary_;
   MaterialRanges ranges_{};
   std::vector<std::string> warnings_;

@@ -33,13 +33,18 @@ concept kCountsCycles = requires(const Law law, typename Law::State s, double x,
   Law::kNewLife;
 };
 
-// The strain up to which a pristine bar of each family stays a linear spring, for the
-// family's constants (the intact fast path's, which is off where the material varies per bar).
-template <class Law> std::array<double, kFamilies> elastic_limits(const BarTable& table) {
-  std::array<double, kFamilies> out{};
-  for (int f = 0; f < kFamilies; ++f)
-    out[static_cast<std::size_t>(f)] = Law::row(table, f, 0).family.elastic_limit();
-  return out;
+// The strain up to which every pristine bar of a row stays a linear spring: the smallest of
+// its n bars' elastic limits from bar `first_bar` on (the family's where the constants are the
+// family's; the intact fast path's threshold).
+template <class Law>
+double row_elastic_limit(const BarTable& table, int family, index_t first_bar, index_t n) {
+  const typename Law::Row row = Law::row(table, family, first_bar);
+  if (!table.per_bar())
+    return Law::template at<false>(row, 0).elastic_limit();
+  double e = std::numeric_limits<double>::infinity();
+  for (index_t i = 0; i < n; ++i)
+    e = std::min(e, Law::template at<true>(row, i).elastic_limit());
+  return e;
 }
 
 // The bars of row r that the state arrays hold: [p0, p1) in a compact layout
@@ -140,11 +145,17 @@ void for_each_row_by_law(const SimulationCore& core, P&& take, F&& visit) {
     visit(core.law_rows[static_cast<std::size_t>(q)]);
 }
 
+// Every bar of a row (visit_law_row's default).
+struct EveryBar {
+  constexpr bool operator()(index_t) const { return true; }
+};
+
 // lane(i, stretch, law, state, k, EA) for each bar i of row r by the bar law, with its
 // stiffness k = E A / l0 and its E A (area factors included), in a loop GCC can vectorise;
-// returns the row's bar count. PerBar: the material varies per bar.
-template <class Law, bool PerBar, class F>
-index_t visit_law_row(const SimulationCore& core, std::size_t r, F&& lane) {
+// returns the row's bar count. PerBar: the material varies per bar. Only the bars for which
+// take(i) holds, when given.
+template <class Law, bool PerBar, class F, class T = EveryBar>
+index_t visit_law_row(const SimulationCore& core, std::size_t r, F&& lane, T take = {}) {
   constexpr std::size_t kStates = Law::kStateArrays.size();
   const BarRow& row = core.layout.bar_rows[r];
   const FamilyInfo& fi = core.lat.family(row.family);
@@ -176,11 +187,14 @@ index_t visit_law_row(const SimulationCore& core, std::size_t r, F&& lane) {
   const Stretch at_rest_g = stretch(d0x, d0y, d0z, l0, inv_l0);
   const auto at_rest = [&](index_t i0, index_t i1) {
     for (index_t i = i0; i < i1; ++i)
-      lane(i, at_rest_g, Law::template at<PerBar>(constants, i), Law::read(rest.data(), 0), 0.0,
-           0.0);
+      if (take(i))
+        lane(i, at_rest_g, Law::template at<PerBar>(constants, i), Law::read(rest.data(), 0), 0.0,
+             0.0);
   };
   at_rest(0, p0);
   for (index_t i = p0; i < p1; ++i) {
+    if (!take(i))
+      continue;
     const Stretch g = stretch(d0x + (ubx[i] - uax[i]), d0y + (uby[i] - uay[i]),
                               d0z + (ubz[i] - uaz[i]), l0, inv_l0);
     const double factor = code ? code[i] * 0.25 : (i == 0 || i + 1 == n) ? end : inner;

@@ -19,15 +19,17 @@ struct RowView {
 };
 
 // The general kernel: s = F / l for a row of n bars by the law. Returns true if some bar's
-// state changes (Law::changes), to be handled by the slow path. `k_row` is E A / l0 times the
-// area factor; per-bar arrays replace it when present (PerBar). `Intact`: every bar of the row
+// state changes (Law::changes), to be handled by the slow path. The law's constants are per
+// bar with PerBar (BarTable::per_bar), the family's otherwise; the stiffness is k_row, E A / l0
+// times the area factor, or with PerBarK each bar's own, k_bar. `Intact`: every bar of the row
 // is pristine (its state is not read). With `Energy`, also the sum over the row of each bar's
 // elastic energy into *energy, from its force over length times w, w = 1 for inner bars and
 // `end_scale` for the first and last (the factor the caller applies to their forces
 // afterwards). `Coded`: a shaped body's row, each bar's force and energy times its area factor
 // code / 4 (StepLayout::bar_code), its absent bars (code 0) with s = 0 and no state change.
 // (Inlined where it is called, as intact_row_kernel.)
-template <class Law, bool PerBar, bool Intact, bool Energy = false, bool Coded = false>
+template <class Law, bool PerBar, bool PerBarK, bool Intact, bool Energy = false,
+          bool Coded = false>
 [[gnu::always_inline]] inline bool
 bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
                const std::array<const double*, Law::kStateArrays.size()>& states, Vec3 d0,
@@ -59,7 +61,7 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
                               d0.z + (ubz[i] - uaz[i]), l0, inv_l0);
     const Law law = Law::template at<PerBar>(row, i);
     const typename Law::State s = Intact ? law.initial() : Law::read(st.data(), i);
-    double si = law.force_over_length(PerBar ? k_bar[i] : k_row, g, s);
+    double si = law.force_over_length(PerBarK ? k_bar[i] : k_row, g, s);
     double w = i == 0 || i + 1 == nn ? end_scale : 1.0;
     int present = 1;
     if constexpr (Coded) {
@@ -238,7 +240,8 @@ inline bool bar_row_stays_intact(const SimulationCore& core, std::size_t r) {
   const auto [a, b] = core.layout.bar_row_nodes[r];
   // sqrt(ratio) + m <= margin, in squares (m <= margin first, which also fails on a NaN).
   const double m = (core.node_row_motion[a] + core.node_row_motion[b]) * core.layout.row_inv_lp[r];
-  return !core.row_damaged[r] && m <= kMargin && core.row_ratio[r] <= (kMargin - m) * (kMargin - m);
+  return !core.row_damaged[r] && !core.layout.bar_rows[r].own_stiffness() && m <= kMargin &&
+         core.row_ratio[r] <= (kMargin - m) * (kMargin - m);
 }
 
 // The bar rows of a line into its plane's force buffer `s_plane`; with `energies`, the elastic
@@ -264,7 +267,6 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
       continue;
     const BarRow& row = core.layout.bar_rows[r];
     const FamilyInfo& fi = core.lat.family(row.family);
-    const FamilyMaterial& mat = core.table.family(row.family);
     // The row's bars [p0, p1): all of them in a box, in a shaped body from the vector of its
     // first present bar to its last (none in a row of absent bars).
     const index_t p0 = row.p0, n = row.p1 - row.p0;
@@ -299,30 +301,36 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     // On a report step the kernels also give the row's elastic energy, its displacements
     // still in cache: the intact kernel sum w (l - l0)^2, the general kernel the law's.
     double intact_sum = 0.0, law_sum = 0.0;
-    const double k = mat.k * row.factor, scale = per_bar ? 1.0 : row.end_factor / row.factor;
-    // The general kernel; a material that varies per bar has its area factors in k_bar.
-    const auto general = [&](auto per_bar_c, auto intact_c) {
-      constexpr bool P = decltype(per_bar_c)::value, I = decltype(intact_c)::value;
-      const double* kr = P ? kb + b0 : nullptr;
+    // A row whose bars share their E (BarRow::stiffness): k of its inner bars, its first and
+    // last bars' forces times `scale` afterwards, and the intact kernel while its bars are
+    // pristine; one whose E varies along it: each bar's k_bar (area factors included), by law.
+    const bool own = row.own_stiffness();
+    const double k = row.stiffness, scale = own ? 1.0 : row.end_factor / row.factor;
+    // The general kernel, with per-bar constants (P) or the family's, and per-bar stiffness
+    // (K) or k.
+    const auto general = [&](auto per_bar_c, auto per_bar_k_c, auto intact_c) {
+      constexpr bool P = decltype(per_bar_c)::value, K = decltype(per_bar_k_c)::value,
+                     I = decltype(intact_c)::value;
+      const double* kr = K ? kb + b0 : nullptr;
       if (!P && code)
         return energies
-                   ? bar_row_kernel<Law, P, I, true, true>(n, v, constants, read_states, fi.d0,
-                                                           fi.l0, k, kr, scale, &law_sum, code)
-                   : bar_row_kernel<Law, P, I, false, true>(n, v, constants, read_states, fi.d0,
-                                                            fi.l0, k, kr, scale, nullptr, code);
+                   ? bar_row_kernel<Law, P, K, I, true, true>(n, v, constants, read_states, fi.d0,
+                                                              fi.l0, k, kr, scale, &law_sum, code)
+                   : bar_row_kernel<Law, P, K, I, false, true>(n, v, constants, read_states, fi.d0,
+                                                               fi.l0, k, kr, scale, nullptr, code);
       return energies
-                 ? bar_row_kernel<Law, P, I, true>(n, v, constants, read_states, fi.d0, fi.l0, k,
-                                                   kr, scale, &law_sum)
-                 : bar_row_kernel<Law, P, I>(n, v, constants, read_states, fi.d0, fi.l0, k, kr);
+                 ? bar_row_kernel<Law, P, K, I, true>(n, v, constants, read_states, fi.d0, fi.l0, k,
+                                                      kr, scale, &law_sum)
+                 : bar_row_kernel<Law, P, K, I>(n, v, constants, read_states, fi.d0, fi.l0, k, kr);
     };
     using yes = std::true_type;
     using no = std::false_type;
     bool by_law = true;
-    if (per_bar) {
-      past = intact ? general(yes{}, yes{}) : general(yes{}, no{});
+    if (own) {
+      past = intact ? general(yes{}, yes{}, yes{}) : general(yes{}, yes{}, no{});
     } else {
       double l2_max = kUnknown;
-      const double e_lim = constants.family.elastic_limit();
+      const double e_lim = row.elastic_limit;
       past = intact && (energies ? intact_row_kernel<true>(n, v, fi.d0, fi.l0, k, e_lim, scale,
                                                            &intact_sum, l2_max, code)
                                  : intact_row_kernel<false>(n, v, fi.d0, fi.l0, k, e_lim, 1.0,
@@ -330,7 +338,7 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
       core.row_ratio[r] = l2_max * (core.layout.row_inv_lp[r] * core.layout.row_inv_lp[r]);
       by_law = !intact || past;
       if (by_law)
-        past = general(no{}, no{});
+        past = per_bar ? general(yes{}, no{}, no{}) : general(no{}, no{}, no{});
       if (row.end_factor != row.factor) {
         v.s[0] *= scale;
         v.s[n - 1] *= scale;

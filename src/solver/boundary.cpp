@@ -71,6 +71,11 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
     core.px.assign(core.layout.slot_count, 0.0);
     core.py.assign(core.layout.slot_count, 0.0);
     core.pz.assign(core.layout.slot_count, 0.0);
+    // The node rows a load acts on (the platens add the rows they touch, step by step).
+    core.row_loaded.assign(core.layout.node_rows.size(), 0);
+    for (const NodalLoad& l : core.cond.loads)
+      for (index_t n : l.set.nodes)
+        core.row_loaded[core.node_row_of(n)] = 1;
   }
 
   // Rows with imposed-velocity nodes, and where each such node's gathered force is kept.

@@ -96,10 +96,6 @@ bool run_may_touch(const Platen& p, Vec3 D, const Boundary::ContactRun& r, const
 // simulation owns; once.
 void build_contact_runs(SimulationCore& c) {
   Boundary& bc = c.bc;
-  c.row_loaded.assign(c.layout.node_rows.size(), 0);
-  for (const NodalLoad& l : c.cond.loads)
-    for (index_t n : l.set.nodes)
-      c.row_loaded[c.node_row_of(n)] = 1;
   bc.contactable.assign(c.layout.slot_count, 0);
   const double L = c.lat.L();
   c.for_each_run(0, c.lat.num_nodes(), [&](std::size_t q0, index_t n0, index_t run) {

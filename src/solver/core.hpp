@@ -112,8 +112,8 @@ struct SimulationCore {
   AlignedVector<DofMask> held;        // DOF fixed, imposed or held by plane strain
   AlignedVector<double> px, py, pz;   // nodal loads at t_n (only with loads)
   std::vector<std::uint8_t> row_held; // per node row: some DOF is fixed or imposed
-  // Per node row, with platens: 1 if a load has a node in it, | 2 if a platen touches one of its
-  // nodes in this step (empty: every row is loaded when there are loads).
+  // Per node row, with loads or platens: 1 if a load has a node in it, | 2 if a platen touches
+  // one of its nodes in this step (empty without either).
   std::vector<std::uint8_t> row_loaded;
   Boundary bc;
 

@@ -17,7 +17,7 @@ namespace ldem {
 struct LawKernels {
   std::string_view name;
   std::span<const StateArray> state_arrays;
-  std::array<double, kFamilies> (*elastic_limits)(const BarTable&);
+  double (*row_elastic_limit)(const BarTable&, int family, index_t first_bar, index_t n);
   void (*init_states)(SimulationCore&, const std::vector<index_t>& precracked);
   void (*mark_damaged_rows)(SimulationCore&);
   // The step's walk over the body, in its variant for damping, loads and a report.
@@ -58,7 +58,7 @@ template <class Law> void advance(SimulationCore& core, bool damped, bool loads,
 template <BarLaw Law> const LawKernels& law_kernels() {
   static const LawKernels kernels{Law::kName,
                                   Law::kStateArrays,
-                                  &elastic_limits<Law>,
+                                  &row_elastic_limit<Law>,
                                   &init_states<Law>,
                                   &mark_damaged_rows<Law>,
                                   &advance<Law>,

@@ -22,6 +22,8 @@ struct NodeRowArgs {
   const DofMask* held;
   double dt, c1, c2, inv_dt;
   double* fs; // one more scratch row (the portable kernel's running sums of s)
+  const double* m; // the masses (a damped update's dissipation)
+  double alpha_dt; // alpha dt of the damping
 };
 
 // The links of a row that mix the two ways: per link, whether it is fast and, if not, where the
@@ -33,8 +35,8 @@ struct MixedLinks {
 
 // The forces on the nodes [0, n) of a row: f_i = sum over the links, in link order, of
 // s (r0 + (u_other - u_i)). Without Integrate they go to the scratch rows fx, fy, fz for i in
-// [0, n rounded up to 8). Returns whether some fast link's bar whose first node is the row's
-// is longer than its watch length.
+// [0, n rounded up to 8). Returns the largest (l / l_p)^2 of the fast links' bars whose first
+// nodes are the row's (0 if none).
 //
 // A fast link (all of them with AllFast, else those `mixed` marks) computes s with the
 // operations of the bar pass's intact kernel; the others read it from the bar pass's buffer.
@@ -49,10 +51,11 @@ struct MixedLinks {
 // -Wuninitialized (_mm512_setzero_pd, _mm512_maskz_mov_pd).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
-template <int NL, bool AllFast, bool Edge, bool Shaped, bool Integrate, bool Held, bool Energy>
+template <int NL, bool AllFast, bool Edge, bool Shaped, bool Integrate, bool Held, bool Energy,
+          bool Damped>
 inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
-                        const EdgeLanes* lanes, std::int64_t i, const NodeRowArgs& a, __mmask8& hot,
-                        __m512d& moved, __m512d* energy) {
+                        const EdgeLanes* lanes, std::int64_t i, const NodeRowArgs& a, __m512d& top,
+                        __m512d& moved, __m512d* energy, __m512d& damped) {
   const __m512d ax = _mm512_load_pd(a.ux + i), ay = _mm512_load_pd(a.uy + i),
                 az = _mm512_load_pd(a.uz + i);
   __m512d gx = _mm512_setzero_pd(), gy = _mm512_setzero_pd(), gz = _mm512_setzero_pd();
@@ -96,9 +99,9 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
           s = times_quarters(s, lanes[l].q1, lanes[l].q2, lanes[l].q3);
         s = _mm512_maskz_mov_pd(m, s);
         if (L.first_node)
-          hot |= _mm512_mask_cmp_pd_mask(m, l2, _mm512_set1_pd(L.lw2), _CMP_GT_OQ);
+          top = _mm512_mask_max_pd(top, m, top, _mm512_mul_pd(l2, _mm512_set1_pd(L.inv_lp2)));
       } else if (L.first_node) {
-        hot |= _mm512_cmp_pd_mask(l2, _mm512_set1_pd(L.lw2), _CMP_GT_OQ);
+        top = _mm512_max_pd(top, _mm512_mul_pd(l2, _mm512_set1_pd(L.inv_lp2)));
       }
     } else {
       s = load(mixed->s[l] + i);
@@ -108,29 +111,45 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
     gz = _mm512_fmadd_pd(s, dz, gz);
   }
   if constexpr (Integrate) {
-    // integrate_row's update without damping, loads or sums, with its operations in its order.
+    // integrate_row's update without loads or sums, with its operations in its order (its
+    // damping is in c1 and c2). Damped: also the power of the damping forces, summed per lane
+    // into `damped`, alpha dt m v_n^2 with v_n = (v_{n-1/2} + v_{n+1/2}) / 2 of the free DOF.
     const __m512d im = _mm512_load_pd(a.im + i);
     const __m512d inv_dt = _mm512_set1_pd(a.inv_dt), c1 = _mm512_set1_pd(a.c1),
                   c2 = _mm512_set1_pd(a.c2), dt = _mm512_set1_pd(a.dt);
     __m512i bits = _mm512_setzero_si512();
     if constexpr (Held)
       bits = _mm512_cvtepu8_epi64(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(a.held + i)));
-    const auto update = [&](double* w, __m512d u, __m512d g, long long dof) {
+    const __m512d half = _mm512_set1_pd(0.5);
+    const auto update = [&](double* w, __m512d u, __m512d g, long long dof, __m512d& mid) {
       const __m512d o = _mm512_mul_pd(_mm512_sub_pd(u, _mm512_load_pd(w + i)), inv_dt);
       __m512d v = _mm512_add_pd(_mm512_mul_pd(c1, o), _mm512_mul_pd(_mm512_mul_pd(c2, g), im));
+      __m512d k = half;
       if constexpr (Held) {
         const __mmask8 free = _mm512_testn_epi64_mask(bits, _mm512_set1_epi64(dof));
-        v = _mm512_mul_pd(_mm512_mask_blend_pd(free, _mm512_setzero_pd(), _mm512_set1_pd(1.0)), v);
+        const __m512d f = _mm512_mask_blend_pd(free, _mm512_setzero_pd(), _mm512_set1_pd(1.0));
+        v = _mm512_mul_pd(f, v);
+        k = _mm512_mul_pd(half, f);
       }
       const __m512d e = _mm512_add_pd(u, _mm512_mul_pd(dt, v));
       _mm512_store_pd(w + i, e);
+      if constexpr (Damped)
+        mid = _mm512_mul_pd(k, _mm512_add_pd(o, v));
       return _mm512_sub_pd(e, u);
     };
-    const __m512d qx = update(a.wx, ax, gx, kDofX), qy = update(a.wy, ay, gy, kDofY),
-                  qz = update(a.wz, az, gz, kDofZ);
+    __m512d mx, my, mz;
+    const __m512d qx = update(a.wx, ax, gx, kDofX, mx), qy = update(a.wy, ay, gy, kDofY, my),
+                  qz = update(a.wz, az, gz, kDofZ, mz);
     moved = _mm512_max_pd(moved,
                           _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(qx, qx), _mm512_mul_pd(qy, qy)),
                                         _mm512_mul_pd(qz, qz)));
+    if constexpr (Damped) {
+      const __m512d v2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(mx, mx), _mm512_mul_pd(my, my)),
+                                       _mm512_mul_pd(mz, mz));
+      damped = _mm512_add_pd(
+          damped,
+          _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(a.alpha_dt), _mm512_load_pd(a.m + i)), v2));
+    }
   } else {
     _mm512_store_pd(a.fx + i, gx);
     _mm512_store_pd(a.fy + i, gy);
@@ -145,13 +164,13 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
 // Only the vectors [from, to) are taken (RowKind); without Integrate the others' forces are 0.
 // `shaped`: the lanes carry a shaped body's area factors (EdgeLanes::q1, q2, q3), and a vector
 // without a present bar on any link is skipped.
-template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy>
-bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
-                     const EdgeLanes* lanes, std::int64_t n, std::int64_t lo, std::int64_t hi,
-                     std::int64_t from, std::int64_t to, bool shaped, const NodeRowArgs& a,
-                     double& moved, double* energy) {
-  __mmask8 hot = 0;
-  __m512d q = _mm512_setzero_pd();
+template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy, bool Damped>
+double node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
+                       const EdgeLanes* lanes, std::int64_t n, std::int64_t lo, std::int64_t hi,
+                       std::int64_t from, std::int64_t to, bool shaped, const NodeRowArgs& a,
+                       double& moved, double* energy, double& damped) {
+  __m512d top = _mm512_setzero_pd();
+  __m512d q = _mm512_setzero_pd(), dsum = _mm512_setzero_pd();
   __m512d sums[NL];
   if constexpr (Energy)
     for (int l = 0; l < NL; ++l)
@@ -165,8 +184,8 @@ bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* m
       }
   for (std::int64_t i = from; i < to; i += 8) {
     if (i >= lo && i + 8 <= hi) {
-      node_vector<NL, AllFast, false, false, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a,
-                                                                      hot, q, sums);
+      node_vector<NL, AllFast, false, false, Integrate, Held, Energy, Damped>(
+          c, ref, mixed, lanes, i, a, top, q, sums, dsum);
     } else {
       // (A vector of a shaped body's absent nodes, which no present bar reaches, has nothing
       // to gather, and its held nodes stay where they are.)
@@ -177,11 +196,11 @@ bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* m
           any |= lanes[l].has;
       }
       if (!shaped)
-        node_vector<NL, AllFast, true, false, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a,
-                                                                       hot, q, sums);
+        node_vector<NL, AllFast, true, false, Integrate, Held, Energy, Damped>(
+            c, ref, mixed, lanes, i, a, top, q, sums, dsum);
       else if (any != 0)
-        node_vector<NL, AllFast, true, true, Integrate, Held, Energy>(c, ref, mixed, lanes, i, a,
-                                                                      hot, q, sums);
+        node_vector<NL, AllFast, true, true, Integrate, Held, Energy, Damped>(
+            c, ref, mixed, lanes, i, a, top, q, sums, dsum);
       else if constexpr (!Integrate) {
         _mm512_store_pd(a.fx + i, _mm512_setzero_pd());
         _mm512_store_pd(a.fy + i, _mm512_setzero_pd());
@@ -194,7 +213,9 @@ bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* m
     for (int l = 0; l < NL; ++l)
       energy[l] = _mm512_reduce_add_pd(sums[l]);
   moved = _mm512_reduce_max_pd(q);
-  return hot != 0;
+  if constexpr (Damped)
+    damped = _mm512_reduce_add_pd(dsum);
+  return _mm512_reduce_max_pd(top);
 }
 #pragma GCC diagnostic pop
 #else
@@ -251,10 +272,11 @@ void portable_chunk(const LinkConst* c, const LinkRef* ref, const MixedLinks* mi
   }
 }
 
-template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy>
-bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
-                     const EdgeLanes*, std::int64_t n, std::int64_t lo, std::int64_t hi,
-                     std::int64_t, std::int64_t, bool, const NodeRowArgs& a, double&, double*) {
+template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy, bool Damped>
+double node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
+                       const EdgeLanes*, std::int64_t n, std::int64_t lo, std::int64_t hi,
+                       std::int64_t, std::int64_t, bool, const NodeRowArgs& a, double&, double*,
+                       double&) {
   static_assert(!Integrate, "the portable kernel gives forces only");
   bool any_fast = AllFast;
   for (int l = 0; l < NL; ++l)
@@ -280,7 +302,7 @@ bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* m
   for (const auto& [e0, e1] : {std::pair{std::int64_t{0}, lo}, std::pair{hi, n}})
     for (std::int64_t i = e0; i < e1; ++i)
       fx[i] = fy[i] = fz[i] = 0.0;
-  int hot = 0;
+  double top = 0.0;
   for (int l = 0; l < NL; ++l) {
     const LinkConst& L = c[l];
     const double* __restrict ox = a.ux_all + ref[l].other;
@@ -290,7 +312,7 @@ bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* m
     const double* __restrict sb = fast ? nullptr : mixed->s[l];
     for (const auto& [e0, e1] :
          {std::pair{L.ilo, std::min(L.ihi, lo)}, std::pair{std::max(L.ilo, hi), L.ihi}}) {
-#pragma omp simd reduction(+ : hot)
+#pragma omp simd reduction(max : top)
       for (std::int64_t i = e0; i < e1; ++i) {
         const double dx = L.rx + (ox[i] - ux[i]), dy = L.ry + (oy[i] - uy[i]),
                      dz = L.rz + (oz[i] - uz[i]);
@@ -303,7 +325,7 @@ bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* m
           if (i == L.ihi - 1)
             s *= L.scale;
           if (L.first_node)
-            hot += l2 > L.lw2 ? 1 : 0;
+            top = std::max(top, l2 * L.inv_lp2);
         } else {
           s = sb[i];
         }
@@ -313,7 +335,7 @@ bool node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* m
       }
     }
   }
-  return hot > 0;
+  return top;
 }
 #endif
 
@@ -425,7 +447,9 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
       core.fast_path && core.line_fast[line] && (j == 0 || core.line_fast[line - 1]) &&
       (k == 0 ||
        (core.line_fast[line - per_plane] && (j == 0 || core.line_fast[line - per_plane - 1])));
-  bool hot_row[2] = {false, false}; // corner, centre
+  // The largest (l / l_p)^2 of the fast bars whose first nodes are the corner and the centre
+  // row's.
+  double top_row[2] = {0.0, 0.0};
   const double dt = core.dt;
   const double half = 0.5 * core.opt.damping * dt;
   const double c1 = (1.0 - half) / (1.0 + half), c2 = dt / (1.0 + half);
@@ -529,20 +553,27 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
                              c1,
                              c2,
                              1.0 / dt,
-                             fw};
-      // On a plain step without damping or loads the kernel also moves the row's nodes (what
-      // integrate_row would do, the same bits), unless imposed velocities need its forces.
+                             fw,
+                             core.mass.data() + n0,
+                             alpha * dt};
+      // (A row whose nodes no load or platen touches takes the update without loads: the same
+      // bits, its loads being zeros.)
+      const bool loaded = core.row_loaded.empty() || core.row_loaded[r] != 0;
+      // On a step that reports nothing the kernel also moves the row's nodes (what
+      // integrate_row would do, the same bits; with damping it sums the damping's dissipation
+      // per lane, integrate_row node by node), unless imposed velocities need its forces or
+      // loads act on the row.
       const bool in_kernel =
-          kVectorKernel && !Damped && !Loads && !Report && core.bc.imposed_row[r] < 0;
-      double motion = 0.0;
+          kVectorKernel && !Report && core.bc.imposed_row[r] < 0 && !(Loads && loaded);
+      double motion = 0.0, damped = 0.0;
       double energy[kMaxRowLinks];
       const auto forces = [&](auto count, auto fast, auto integrate, auto held_c) {
-        return node_row_forces < decltype(count)::value, decltype(fast)::value,
-               decltype(integrate)::value, decltype(held_c)::value,
-               Report &&
-                   kVectorKernel > (lc, ref, &mixed,
-                                    core.layout.edge_lanes.data() + kind.edge_begin, n, lo, hi,
-                                    span.from, span.to, core.layout.coded(), args, motion, energy);
+        constexpr bool I = decltype(integrate)::value;
+        return node_row_forces < decltype(count)::value, decltype(fast)::value, I,
+               decltype(held_c)::value, Report && kVectorKernel,
+               Damped &&
+                   I > (lc, ref, &mixed, core.layout.edge_lanes.data() + kind.edge_begin, n, lo, hi,
+                        span.from, span.to, core.layout.coded(), args, motion, energy, damped);
       };
       const auto by_count = [&](auto... flags) {
         switch (padded) {
@@ -566,28 +597,28 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
       };
       using yes = std::true_type;
       using no = std::false_type;
-      bool hot = false;
-      if constexpr (kVectorKernel && !Damped && !Loads && !Report) {
+      double top = 0.0;
+      if constexpr (kVectorKernel && !Report) {
         if (in_kernel) {
           if (core.row_held[r])
-            hot = all_fast ? by_count(yes{}, yes{}, yes{}) : by_count(no{}, yes{}, yes{});
+            top = all_fast ? by_count(yes{}, yes{}, yes{}) : by_count(no{}, yes{}, yes{});
           else
-            hot = all_fast ? by_count(yes{}, yes{}, no{}) : by_count(no{}, yes{}, no{});
+            top = all_fast ? by_count(yes{}, yes{}, no{}) : by_count(no{}, yes{}, no{});
         }
       }
       if (!in_kernel)
-        hot = all_fast ? by_count(yes{}, no{}, no{}) : by_count(no{}, no{}, no{});
+        top = all_fast ? by_count(yes{}, no{}, no{}) : by_count(no{}, no{}, no{});
       // The fast bar rows whose first nodes are this row's: their elastic energy, U = k (l -
       // l0)^2 / 2 with the area factors in the weights (as bar_rows has it for the others).
       if constexpr (Report && kVectorKernel)
         for (int l = 0; l < nl; ++l)
           if (lc[l].first_node && core.row_fast[ref[l].bar_row])
             core.energy_rows_u[ref[l].bar_row] = 0.5 * lc[l].k * energy[l];
-      hot_row[row.centre] = hot;
+      top_row[row.centre] = top;
       if (in_kernel) {
         core.node_row_motion[r] = std::sqrt(motion);
-        core.row_damping[r] = core.row_load_mid[r] = core.row_load_half[r] = core.row_kinetic[r] =
-            0.0;
+        core.row_damping[r] = damped;
+        core.row_load_mid[r] = core.row_load_half[r] = core.row_kinetic[r] = 0.0;
         continue;
       }
       // A row with imposed-velocity nodes keeps its gathered forces for apply_velocities.
@@ -605,9 +636,6 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
       const IntegrationConstants ic{dt, c1, c2, alpha};
       // (The rows' motion only matters to the fast path.)
       // (The nodes [from, to): the others' terms of the sums are zeros, which change no sum.)
-      // (A row whose nodes no load or platen touches takes the update without loads: the same
-      // bits, its loads being zeros.)
-      const bool loaded = core.row_loaded.empty() || core.row_loaded[r] != 0;
       const auto integrate = [&](auto held_c, auto motion_c) {
         constexpr bool H = decltype(held_c)::value, M = decltype(motion_c)::value;
         const index_t f = from;
@@ -645,12 +673,13 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
     }
   }
   // The line's fast bar rows, whose first nodes are its corner row's (edges) or its centre
-  // row's (the rest): no bar longer than its watch length unless the kernel saw one there.
+  // row's (the rest): no bar longer than the longest the kernel saw there (relative to each
+  // one's l_p), a bound for the next step's test (bar_row_stays_intact) as the intact kernel's
+  // own largest length is.
   for (std::size_t r = core.layout.lines[line].bar_begin;
        core.fast_path && r < core.layout.lines[line].bar_end; ++r)
     if (core.row_fast[r])
-      core.row_ratio[r] =
-          hot_row[core.layout.row_first_centre[r]] ? kUnknown : core.layout.row_watch[r];
+      core.row_ratio[r] = top_row[core.layout.row_first_centre[r]];
 }
 #pragma GCC diagnostic pop
 

@@ -4,6 +4,7 @@
 #include "solver/law_kernels.hpp"
 #include "solver/laws.hpp"
 #include "util/error.hpp"
+#include "util/parallel.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -130,7 +131,9 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
                                                                setup_start)
                                       .count());
   };
-  c.layout = build_step_layout(c.lat, c.table, law_->elastic_limits(c.table));
+  c.layout = build_step_layout(c.lat, c.table, [&](int f, index_t first_bar, index_t n) {
+    return law_->row_elastic_limit(c.table, f, first_bar, n);
+  });
   done("step layout");
   const std::size_t slots = c.layout.slot_count;
   // Masses and held DOF by node number while the step is set up, then in the slots only.
@@ -178,8 +181,11 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   done("bar states");
   // The intact fast path: nothing is known of the strains or the motion before the first step.
   // (Without AVX-512 it would take a square root and a division for every bar at each end:
-  // slower than the bar pass, so it is off.)
-  c.fast_path = c.opt.intact_at_nodes && !c.table.per_bar() && kVectorKernel;
+  // slower than the bar pass, so it is off.) Only rows whose bars share their stiffness take
+  // it (BarRow::stiffness): off where there are none.
+  c.fast_path = c.opt.intact_at_nodes && kVectorKernel &&
+                std::any_of(c.layout.bar_rows.begin(), c.layout.bar_rows.end(),
+                            [](const BarRow& r) { return !r.own_stiffness(); });
   c.row_fast.assign(c.layout.bar_rows.size(), 0);
   c.line_fast.assign(c.layout.lines.size(), 0);
   c.node_row_motion.assign(c.layout.node_rows.size(), kUnknown);
@@ -754,10 +760,13 @@ index_t Simulation::first_node_beyond(double limit) const {
   const SimulationCore& c = *core_;
   const index_t nn = c.lat.num_nodes();
   // A quick test of the whole field first (NaN and infinity make the sums non-finite or large;
-  // the slots between rows hold zeros).
+  // the slots between rows hold zeros), shared by the threads: its order of summation, which
+  // their count changes, decides only whether the node by node look below is needed, and that
+  // look gives the answer.
   double s = 0.0;
-#pragma omp simd reduction(+ : s)
-  for (std::size_t q = 0; q < c.layout.slot_count; ++q)
+  const auto slots = static_cast<std::int64_t>(c.layout.slot_count);
+#pragma omp parallel for simd schedule(static) reduction(+ : s) if (slots > kParallelMinItems)
+  for (std::int64_t q = 0; q < slots; ++q)
     s += std::abs(c.ux[q]) + std::abs(c.uy[q]) + std::abs(c.uz[q]);
   if (std::isfinite(s) && s <= limit)
     return nn;
@@ -824,10 +833,9 @@ double Simulation::bytes_per_module() const {
   total += bytes(l.link_ref) + bytes(l.row_kind) + bytes(l.link_const) + bytes(l.row_kinds) +
            bytes(c.row_held) + bytes(c.row_damaged) + bytes(l.node_rows) + bytes(l.bar_rows) +
            bytes(c.row_fast) + bytes(c.line_fast) + bytes(c.row_ratio) + bytes(l.row_inv_lp) +
-           bytes(l.row_watch) + bytes(l.row_first_centre) + bytes(l.row_whole) +
-           bytes(l.bar_row_nodes) + bytes(c.node_row_motion) + bytes(l.edge_lanes) +
-           bytes(l.bar_code) + bytes(l.row_span) + bytes(l.row_origin) + bytes(l.row_window) +
-           bytes(l.state_origin) + bytes(l.bar_row_at);
+           bytes(l.row_first_centre) + bytes(l.row_whole) + bytes(l.bar_row_nodes) +
+           bytes(c.node_row_motion) + bytes(l.edge_lanes) + bytes(l.bar_code) + bytes(l.row_span) +
+           bytes(l.row_origin) + bytes(l.row_window) + bytes(l.state_origin) + bytes(l.bar_row_at);
   for (const auto& b : c.plane_buffers)
     total += bytes(b);
   for (const auto& b : c.line_stores)

@@ -98,12 +98,11 @@ void add_row_span(StepLayout& out, std::size_t r, const RowLink* links, int nl, 
 
 // The kinds of node rows and each row's links (link_const, edge_lanes, row_kinds, row_kind,
 // link_ref), from the bar rows (in (k, j, family) order, `row_at`).
-void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
-                     const std::array<double, kFamilies>& elastic_limit,
+void build_row_links(StepLayout& out, const Lattice& lat,
                      const std::vector<std::uint32_t>& row_at) {
   const auto same = [](const LinkConst& a, const LinkConst& b) {
     return a.rx == b.rx && a.ry == b.ry && a.rz == b.rz && a.k == b.k && a.l0 == b.l0 &&
-           a.kl0 == b.kl0 && a.scale == b.scale && a.lw2 == b.lw2 && a.ilo == b.ilo &&
+           a.kl0 == b.kl0 && a.scale == b.scale && a.inv_lp2 == b.inv_lp2 && a.ilo == b.ilo &&
            a.ihi == b.ihi && a.dk == b.dk && a.first_node == b.first_node;
   };
   out.link_ref.resize(kMaxRowLinks * out.node_rows.size());
@@ -123,9 +122,12 @@ void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
           row_at[(a.k * (lat.ny() + 1ull) + a.j) * kFamilies + static_cast<std::size_t>(a.family)];
       const BarRow& row = out.bar_rows[br];
       const FamilyInfo& fi = lat.family(row.family);
-      const double k = table.family(row.family).k * row.factor;
-      const double scale = table.per_bar() ? 1.0 : row.end_factor / row.factor;
-      const double lw = fi.l0 * (1.0 + 0.5 * elastic_limit[static_cast<std::size_t>(row.family)]);
+      // (A row whose bars have their own stiffness never takes the fast path: no spring, so
+      // that such rows share their kinds.)
+      const bool own = row.own_stiffness();
+      const double k = row.stiffness;
+      const double scale = own ? 1.0 : row.end_factor / row.factor;
+      const double inv_lp2 = own ? 0.0 : out.row_inv_lp[br] * out.row_inv_lp[br];
       kind[l] = {L.r0.x,
                  L.r0.y,
                  L.r0.z,
@@ -133,7 +135,7 @@ void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
                  fi.l0,
                  k * fi.l0,
                  scale,
-                 lw * lw,
+                 inv_lp2,
                  L.ilo,
                  L.ihi,
                  L.dk,
@@ -142,9 +144,9 @@ void build_row_links(StepLayout& out, const Lattice& lat, const BarTable& table,
       out.link_ref[kMaxRowLinks * r + l] = {L.other_base, br,
                                             static_cast<std::int32_t>(L.plane_base)};
       // A first or last bar with a factor of its own needs its lane scaled.
-      const std::int64_t own = scale != 1.0 ? 1 : 0;
-      lo = std::max(lo, std::int64_t{L.ilo} + own);
-      hi = std::min(hi, std::int64_t{L.ihi} - own);
+      const std::int64_t scaled = scale != 1.0 ? 1 : 0;
+      lo = std::max(lo, std::int64_t{L.ilo} + scaled);
+      hi = std::min(hi, std::int64_t{L.ihi} - scaled);
     }
     std::size_t t = 0;
     while (t < out.row_kinds.size() &&
@@ -273,7 +275,7 @@ void compact_rows(StepLayout& out, const Lattice& lat) {
 } // namespace
 
 StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
-                             const std::array<double, kFamilies>& elastic_limit) {
+                             const std::function<double(int, index_t, index_t)>& elastic_limit) {
   StepLayout out;
   // The step loop's node arrays: the lattice's rows of nodes, each from a cache line on.
   out.slots = {static_cast<std::int64_t>(round_up_to_line(lat.nx() + 1ull)),
@@ -325,29 +327,28 @@ StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
             ++p0;
           p0 = p0 / 8 * 8;
         }
+        const index_t b0 = lat.bar(fam, 0, j, k);
         out.bar_rows.push_back({f, j, k, inner, end, out.slot(lat, fi.a.at(0, j, k)),
-                                out.slot(lat, fi.b.at(0, j, k)), p0, p1});
+                                out.slot(lat, fi.b.at(0, j, k)), p0, p1,
+                                table.row_stiffness(f, j, k) * inner, elastic_limit(f, b0, fi.ni)});
       }
   // The links of every node row, computed once (they cost more to derive than to read), their
   // bar rows (in (k, j, family) order) and pristine springs; rows of one kind share their
   // constants.
   std::vector<std::uint32_t> row_at((lat.nz() + 1ull) * (lat.ny() + 1ull) * kFamilies, 0);
   out.row_inv_lp.resize(out.bar_rows.size());
-  out.row_watch.resize(out.bar_rows.size());
   out.row_first_centre.resize(out.bar_rows.size());
   for (std::size_t r = 0; r < out.bar_rows.size(); ++r) {
     const BarRow& row = out.bar_rows[r];
     row_at[(row.k * (lat.ny() + 1ull) + row.j) * kFamilies + static_cast<std::size_t>(row.family)] =
         static_cast<std::uint32_t>(r);
     const double l0 = lat.family(row.family).l0;
-    const double e_lim = elastic_limit[static_cast<std::size_t>(row.family)];
+    const double e_lim = row.elastic_limit;
+    // (A law without an elastic limit: 0, no bar is ever near it.)
     out.row_inv_lp[r] = 1.0 / (l0 * (1.0 + e_lim));
-    const double lw = l0 * (1.0 + 0.5 * e_lim); // the watch length (LinkConst)
-    // (A law without an elastic limit: no bar is ever near it.)
-    out.row_watch[r] = std::isinf(e_lim) ? 0.0 : lw * lw * out.row_inv_lp[r] * out.row_inv_lp[r];
     out.row_first_centre[r] = row.family >= static_cast<int>(Family::CentreX);
   }
-  build_row_links(out, lat, table, elastic_limit, row_at);
+  build_row_links(out, lat, row_at);
   // Where the portable kernel can take a whole row in one pass, from the bar pass's buffers: a
   // link missing at a row's end reads a zero pad of the plane buffer (s = 0) and a neighbouring
   // slot's finite displacement, so that holds wherever those reads stay inside the lattice's

@@ -11,6 +11,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace ldem {
@@ -22,10 +23,11 @@ namespace ldem {
 // the row's) for the first and last bars of their bar row (nodes ilo and ihi - 1); the nodes
 // [ilo, ihi) that have the link; which plane buffer holds the bars' forces when the bar pass
 // computes them (dk = 0: the row's plane, -1: the one below); whether the row's nodes are the
-// bars' first nodes; and the watch length lw = l0 (1 + e_lim / 2), e_lim the law's elastic
-// limit: the kernel tells whether some bar is longer (lw2 = lw^2).
+// bars' first nodes; and 1 / l_p^2, l_p = l0 (1 + e_lim) the length at which the bars leave
+// the law's elastic range (e_lim the bar row's elastic limit; 0 where there is none): the
+// kernel gives the largest (l / l_p)^2 of the bars whose first nodes are the row's.
 struct LinkConst {
-  double rx, ry, rz, k, l0, kl0, scale, lw2;
+  double rx, ry, rz, k, l0, kl0, scale, inv_lp2;
   std::int64_t ilo, ihi;
   int dk;
   bool first_node;
@@ -63,12 +65,18 @@ struct RowKind {
 // A row of bars: family f, i running, at (j, k). In a shaped body (StepLayout::bar_code) the
 // factors are 1 and the bars' own are in their codes; the kernels take the bars [p0, p1) (from
 // the vector of 8 that holds the first present bar to the last present bar; [0, ni) in a box).
+// `stiffness`: the k = E A / l0 of its inner bars (area factor included) when all its bars
+// share their E (BarTable::row_stiffness), and 0 when E varies along the row: its bars then take
+// their own k (BarTable::k_bar) and never the intact fast path. `elastic_limit`: the smallest
+// of its bars' elastic limits (the intact kernel's threshold).
 struct BarRow {
   int family;
   index_t j, k;
   double factor, end_factor;  // area factors of the row's bars (inner, first/last)
   std::size_t a_slot, b_slot; // slots of the first and second nodes of the row's bar i = 0
   index_t p0, p1;
+  double stiffness, elastic_limit;
+  bool own_stiffness() const { return stiffness == 0.0; } // k per bar
 };
 
 // Row ranges of each line (fixed j, k) and the lines of each k-plane.
@@ -108,12 +116,11 @@ struct StepLayout {
   std::vector<RowKind> row_span;
   bool coded() const { return !bar_code.empty(); }
   // Per bar row: the node rows of its first and second nodes, whether its first nodes are
-  // centres (else corners), 1 / l_p with l_p = l0 (1 + e_lim) the length at which its bars
-  // leave the law's elastic range, and the largest (l / l_p)^2 a bar no longer than its watch
-  // length can have ((lw / l_p)^2, see LinkConst).
+  // centres (else corners), and 1 / l_p with l_p = l0 (1 + e_lim) the length at which its bars
+  // leave the law's elastic range.
   std::vector<std::array<std::uint32_t, 2>> bar_row_nodes;
   std::vector<std::uint8_t> row_first_centre;
-  std::vector<double> row_inv_lp, row_watch;
+  std::vector<double> row_inv_lp;
   std::size_t line_store_stride = 0; // the most bars a line has
 
   // Per node row (node_rows' order), the slot of its node i = 0: slot = row_origin + i.
@@ -228,10 +235,11 @@ struct StepLayout {
   std::size_t node_row_of(const Lattice& lat, index_t node) const;
 };
 
-// The layout of a lattice's step. `elastic_limit[f]`: the strain up to which a pristine bar of
-// family f stays a linear spring (the law's, for the family's constants; infinite for a law
-// without one); `k` and the area factors come from the table.
+// The layout of a lattice's step. `elastic_limit(f, first_bar, n)`: the strain up to which
+// every pristine bar of the row of n bars of family f from first_bar on stays a linear spring
+// (the law's, for the bars' constants; infinite for a law without one); `k` and the area
+// factors come from the table.
 StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
-                             const std::array<double, kFamilies>& elastic_limit);
+                             const std::function<double(int, index_t, index_t)>& elastic_limit);
 
 } // namespace ldem
