@@ -6,10 +6,11 @@
 #include <benchmark/benchmark.h>
 #include <cstdint>
 #include <cstdio>
+#include <vector>
 
 namespace {
 
-ldem::Simulation make(int n, bool intact_at_nodes = true) {
+ldem::Simulation make(int n, bool intact_at_nodes = true, bool broken = false) {
   ldem::Lattice lat(n, n, n, 0.0075);
   ldem::MaterialSpec m;
   m.E = 35e9;
@@ -19,7 +20,13 @@ ldem::Simulation make(int n, bool intact_at_nodes = true) {
   ldem::BarTable table(lat, m);
   ldem::SolverOptions o;
   o.intact_at_nodes = intact_at_nodes;
-  ldem::Simulation sim(std::move(lat), std::move(table), {}, o);
+  // With `broken`, every bar pre-cracked (compression only): every row damaged, through the
+  // general kernel.
+  std::vector<ldem::index_t> cracked;
+  if (broken)
+    for (ldem::index_t b = 0; b < lat.num_bars(); ++b)
+      cracked.push_back(b);
+  ldem::Simulation sim(std::move(lat), std::move(table), {}, o, std::move(cracked));
   const double half = 0.5 * n * 0.0075;
   sim.set_velocity([&](ldem::Vec3 X) { return ldem::Vec3{0.1 * (X.x - half) / half, 0, 0}; });
   return sim;
@@ -51,6 +58,17 @@ void BM_StepThroughBarPass(benchmark::State& state) {
   set_rate(state, sim);
 }
 BENCHMARK(BM_StepThroughBarPass)->Arg(32)->Arg(64)->Unit(benchmark::kMillisecond);
+
+// The same step with every bar damaged (pre-cracked): every row through the bar law's general
+// kernel, which reads each bar's history, into the plane buffers. Against BM_StepThroughBarPass
+// (pristine rows through the intact kernel) and BM_Step: what a damaged bar costs.
+void BM_StepDamaged(benchmark::State& state) {
+  ldem::Simulation sim = make(static_cast<int>(state.range(0)), true, true);
+  for (auto _ : state)
+    sim.step(false);
+  set_rate(state, sim);
+}
+BENCHMARK(BM_StepDamaged)->Arg(32)->Arg(64)->Unit(benchmark::kMillisecond);
 
 // A report step: the same plus kinetic energy sums and the bars' elastic and damage energy.
 void BM_ReportStep(benchmark::State& state) {

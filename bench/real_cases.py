@@ -6,7 +6,10 @@ stepped as long), in alternating rounds; medians of the per-round ratios.
 
     PYTHONPATH=build/release/python /usr/bin/python3 bench/real_cases.py [ROUNDS=3]
 
-Environment: LDEM (default build/release/ldem), THREADS (default 2).
+Environment: LDEM (default build/release/ldem), THREADS (default 2); LAMMPS_RUN, the peer
+benchmark's run_lammps.sh (bench/README.md, "The peer"): when set, LAMMPS also runs each lattice
+(elastic bonds: it has no softening law) for as many steps, MPI ranks as many as THREADS, and
+the table gains its rate and the case's ratio to it.
 """
 
 import json
@@ -79,6 +82,16 @@ def run_bench(modules: list[int], steps: int) -> float:
     return float(line.split("bar_updates_per_s=")[1].split()[0])
 
 
+LAMMPS_RUN = os.environ.get("LAMMPS_RUN")
+
+
+def run_lammps(modules: list[int], steps: int) -> float:
+    r = subprocess.run(["bash", LAMMPS_RUN, *map(str, modules), str(steps), THREADS],
+                       check=True, capture_output=True, text=True)
+    line = r.stdout.strip().splitlines()[-1]
+    return float(line.split("bar_updates_per_s=")[1].split()[0])
+
+
 def main() -> None:
     rounds = int(sys.argv[1]) if len(sys.argv) > 1 else 3
     with tempfile.TemporaryDirectory() as tmp:
@@ -88,24 +101,37 @@ def main() -> None:
         ratios = {label: [] for label, _, _ in cases}
         rates = {label: [] for label, _, _ in cases}
         bench = {label: [] for label, _, _ in cases}
+        peer = {label: [] for label, _, _ in cases}
         for r in range(rounds):
             for label, path, modules in cases:
                 s = run_case(path, work)
-                b = run_bench(modules, max(2, min(int(s["steps"]), 20000)))
+                steps = max(2, min(int(s["steps"]), 20000))
+                b = run_bench(modules, steps)
                 rates[label].append(s["bar_updates_per_s"])
                 bench[label].append(b)
                 ratios[label].append(s["bar_updates_per_s"] / b)
+                msg = ""
+                if LAMMPS_RUN:
+                    peer[label].append(run_lammps(modules, steps))
+                    msg = f", LAMMPS {peer[label][-1]:.3g}"
                 print(f"round {r + 1} {label}: {s['bar_updates_per_s']:.3g} against bench "
-                      f"{b:.3g} ({s['steps']} steps, {s['softening_bars_at_end']} softening, "
-                      f"{s['broken_bars_at_end']} broken at the end)", flush=True)
+                      f"{b:.3g}{msg} ({s['steps']} steps, {s['softening_bars_at_end']} "
+                      f"softening, {s['broken_bars_at_end']} broken at the end)", flush=True)
+        extra = " LAMMPS, same lattice, median | run / LAMMPS: median (min to max) |" \
+            if LAMMPS_RUN else ""
         print("\n| case | ldem run, median (1e6/s) | ldem bench, same lattice, median | "
-              "run / bench: median (min to max) |")
-        print("|---|---|---|---|")
+              "run / bench: median (min to max) |" + extra)
+        print("|---|---|---|---|" + ("---|---|" if LAMMPS_RUN else ""))
         for label, _, _ in cases:
             q = ratios[label]
-            print(f"| {label} | {statistics.median(rates[label]) / 1e6:.0f} | "
-                  f"{statistics.median(bench[label]) / 1e6:.0f} | {statistics.median(q):.2f} "
-                  f"({min(q):.2f} to {max(q):.2f}) |")
+            row = (f"| {label} | {statistics.median(rates[label]) / 1e6:.0f} | "
+                   f"{statistics.median(bench[label]) / 1e6:.0f} | {statistics.median(q):.2f} "
+                   f"({min(q):.2f} to {max(q):.2f}) |")
+            if LAMMPS_RUN:
+                p = [a / b for a, b in zip(rates[label], peer[label])]
+                row += (f" {statistics.median(peer[label]) / 1e6:.0f} | "
+                        f"{statistics.median(p):.2f} ({min(p):.2f} to {max(p):.2f}) |")
+            print(row)
 
 
 if __name__ == "__main__":
