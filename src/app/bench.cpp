@@ -1,15 +1,17 @@
 #include "app/bench.hpp"
 
 #include "app/case_run.hpp"
-
 #include "parallel/comm.hpp"
 #include "solver/simulation.hpp"
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <fmt/format.h>
 #include <functional>
 #include <omp.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 namespace ldem {
 
@@ -47,6 +49,22 @@ template <class After> double timed_steps(Simulation& sim, std::uint64_t steps, 
   return max_over_processes(std::chrono::duration<double>(t1 - t0).count());
 }
 
+// This process's resident memory now (Linux's /proc/self/statm) and its peak so far
+// (getrusage), in bytes; 0 where unknown.
+double resident_now() {
+  std::FILE* f = std::fopen("/proc/self/statm", "r");
+  if (!f)
+    return 0.0;
+  unsigned long long size = 0, resident = 0;
+  const bool ok = std::fscanf(f, "%llu %llu", &size, &resident) == 2;
+  std::fclose(f);
+  return ok ? static_cast<double>(resident) * static_cast<double>(sysconf(_SC_PAGESIZE)) : 0.0;
+}
+double resident_peak() {
+  rusage u{};
+  return getrusage(RUSAGE_SELF, &u) == 0 ? 1024.0 * static_cast<double>(u.ru_maxrss) : 0.0;
+}
+
 } // namespace
 
 BenchResult run_bench(const BenchOptions& o) {
@@ -73,6 +91,8 @@ BenchResult run_bench(const BenchOptions& o) {
     sim.step(true);
     const double e1 = sim.last_report().elastic + sim.last_report().kinetic;
     r.energy_drift = std::abs(e1 - e0) / e0;
+    r.resident_steps = resident_now();
+    r.resident_peak = resident_peak();
     r.bytes_per_module = sim.bytes_per_module();
     r.dt = sim.dt();
     r.dt_stable = sim.stable_step().dt;
@@ -103,6 +123,8 @@ BenchResult run_bench(const BenchOptions& o) {
     r.wall_s = timed_steps(sim, o.steps, [&] { exchange_halos(run, buffers); });
     sim.step(true);
     r.energy_drift = std::abs(total() - e0) / e0;
+    r.resident_steps = max_over_processes(resident_now());
+    r.resident_peak = max_over_processes(resident_peak());
     const double local_modules = static_cast<double>(sim.lattice().num_modules());
     const double owned_modules =
         static_cast<double>(sub.y.m1 - sub.y.m0) * (sub.z.m1 - sub.z.m0) * o.nx;

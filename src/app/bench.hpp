@@ -19,6 +19,9 @@ struct BenchResult {
   int threads = 0, processes = 1, grid_y = 1, grid_z = 1;
   double wall_s = 0.0, bar_updates_per_s = 0.0, bytes_per_module = 0.0, dt = 0.0, dt_stable = 0.0;
   double energy_drift = 0.0; // relative change of total energy over the run
+  // Resident memory of the (busiest) process [bytes]: at the end of the time-step loop, and
+  // its peak over the whole command (set-up included); 0 where the system does not tell.
+  double resident_steps = 0.0, resident_peak = 0.0;
   // bytes_per_module: per owned module of the busiest process when distributed
 };
 

@@ -534,7 +534,7 @@ BuiltCase build_case(const std::string& path, const std::function<void(CaseSpec&
       const std::vector<index_t> no_bars;
       const std::vector<double> rho_module =
           with_simulation ? fields.rho : case_fields(s, lat, &no_bars, nullptr).rho;
-      const std::vector<double> mass = lumped_masses(lat, s.material.rho, rho_module);
+      const auto mass = lumped_masses(lat, s.material.rho, rho_module);
       for (std::size_t i = 0; i < s.loads.size(); ++i)
         if (s.loads[i].kind == LoadSpec::Kind::Acceleration) {
           std::vector<double>& weight = cond.loads[i].weight;

@@ -318,6 +318,11 @@ int main(int argc, char** argv) {
                  "energy drift {:.2e}\n",
                  bench.nx, bench.ny, bench.nz, r.dt, r.dt_stable, r.bytes_per_module,
                  r.energy_drift);
+      if (r.resident_steps > 0.0 && r.resident_peak > 0.0)
+        fmt::print("resident memory{}: {:.3g} GB after the steps, peak {:.3g} GB ({:.2f} "
+                   "times; the set-up included)\n",
+                   r.processes > 1 ? " of the busiest process" : "", r.resident_steps / 1e9,
+                   r.resident_peak / 1e9, r.resident_peak / r.resident_steps);
       fmt::print("{}\n", ldem::bench_line(r));
     }
   } catch (const ldem::InputError& e) {

@@ -89,8 +89,15 @@ void init_states(SimulationCore& core, const std::vector<index_t>& precracked) {
   constexpr std::size_t kStates = Law::kStateArrays.size();
   const index_t nb = core.lat.num_bars();
   core.states.resize(kStates);
-  for (std::vector<double>& a : core.states)
-    a.assign(core.layout.state_count, 0.0);
+  // (Zeroed by the threads together, which then own their pages: huge pages, first touched in
+  // parallel.)
+  const auto count = static_cast<std::int64_t>(core.layout.state_count);
+  for (UnsetVector<double>& a : core.states) {
+    a.resize(core.layout.state_count);
+#pragma omp parallel for schedule(static) if (count > kParallelMinItems)
+    for (std::int64_t q = 0; q < count; ++q)
+      a[static_cast<std::size_t>(q)] = 0.0;
+  }
   const bool per_bar = core.table.per_bar();
   const auto rows = static_cast<std::int64_t>(core.layout.bar_rows.size());
 #pragma omp parallel for schedule(static) if (std::int64_t{nb} > kParallelMinItems)

@@ -1,5 +1,6 @@
 #include "solver/core.hpp"
 #include "util/error.hpp"
+#include "util/parallel.hpp"
 
 #include <cmath>
 #include <fmt/format.h>
@@ -60,9 +61,10 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
       held[n] |= bit;
   }
   core.held.assign(core.layout.slot_count, 0);
-  for (index_t n = 0; n < nn; ++n)
-    if (const std::size_t q = core.slot(n); core.layout.stored(q))
-      core.held[q] = held[n];
+#pragma omp parallel for schedule(static) if (nn > kParallelMinItems)
+  for (std::int64_t m = 0; m < std::int64_t{nn}; ++m)
+    if (const std::size_t q = core.slot(static_cast<index_t>(m)); core.layout.stored(q))
+      core.held[q] = held[static_cast<std::size_t>(m)];
   // (The block the absent nodes outside their rows' windows read: held, as they are.)
   if (core.layout.compact())
     std::fill(core.held.begin() + static_cast<std::ptrdiff_t>(core.layout.zero_slot),
@@ -81,26 +83,23 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
   // Rows with imposed-velocity nodes, and where each such node's gathered force is kept.
   const std::vector<NodeRow>& rows = core.layout.node_rows;
   bc.imposed_row.assign(rows.size(), -1);
-  std::vector<std::size_t> row_of(nn);
-  for (std::size_t r = 0; r < rows.size(); ++r)
-    for (index_t i = 0; i < rows[r].length; ++i)
-      row_of[rows[r].first + i] = r;
+  const auto row_of = [&](index_t n) { return core.node_row_of(n); };
   std::size_t kept = 0;
   for (const ImposedVelocity& v : core.cond.velocities)
     for (index_t n : v.set.nodes)
-      if (bc.imposed_row[row_of[n]] < 0) {
-        bc.imposed_row[row_of[n]] = static_cast<std::int64_t>(kept);
-        kept += 3 * std::size_t{rows[row_of[n]].length};
+      if (bc.imposed_row[row_of(n)] < 0) {
+        bc.imposed_row[row_of(n)] = static_cast<std::int64_t>(kept);
+        kept += 3 * std::size_t{rows[row_of(n)].length};
       }
   bc.imposed_force.assign(kept, 0.0);
   for (const ImposedVelocity& v : core.cond.velocities) {
     bc.imposed_force_at.emplace_back();
     bc.imposed_node_row.emplace_back();
     for (index_t n : v.set.nodes) {
-      const NodeRow& row = rows[row_of[n]];
+      const NodeRow& row = rows[row_of(n)];
       bc.imposed_force_at.back().push_back(
-          {static_cast<std::size_t>(bc.imposed_row[row_of[n]]) + (n - row.first), row.length});
-      bc.imposed_node_row.back().push_back(static_cast<std::uint32_t>(row_of[n]));
+          {static_cast<std::size_t>(bc.imposed_row[row_of(n)]) + (n - row.first), row.length});
+      bc.imposed_node_row.back().push_back(static_cast<std::uint32_t>(row_of(n)));
     }
   }
   bc.imposed_motion.assign(rows.size(), 0.0);
@@ -109,9 +108,13 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
   // force is exactly 0 and, from rest, so is their motion, held or not; rows cut by the body's
   // surface then take the node update without held DOF.)
   core.row_held.assign(rows.size(), 0);
-  for (std::size_t r = 0; r < rows.size(); ++r)
-    for (index_t i = 0; i < rows[r].length; ++i)
-      core.row_held[r] |= held[rows[r].first + i] != 0 && core.lat.node_present(rows[r].first + i);
+#pragma omp parallel for schedule(static) if (nn > kParallelMinItems)
+  for (std::int64_t r = 0; r < static_cast<std::int64_t>(rows.size()); ++r) {
+    const NodeRow& row = rows[static_cast<std::size_t>(r)];
+    for (index_t i = 0; i < row.length; ++i)
+      core.row_held[static_cast<std::size_t>(r)] |=
+          held[row.first + i] != 0 && core.lat.node_present(row.first + i);
+  }
   return held;
 }
 

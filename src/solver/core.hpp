@@ -107,10 +107,10 @@ struct SimulationCore {
   // Node arrays of the step loop (structure of arrays, indexed by slot): u_n, and u_{n-1}
   // (overwritten by u_{n+1} during a step, then the two are swapped):
   // v_{n-1/2} = (u_n - u_{n-1}) / dt, so no velocity array is streamed.
-  AlignedVector<double> ux, uy, uz, wx, wy, wz;
-  AlignedVector<double> mass, inv_mass;
+  UnsetVector<double> ux, uy, uz, wx, wy, wz;
+  UnsetVector<double> mass, inv_mass; // (set by the threads together: set-up)
   AlignedVector<DofMask> held;        // DOF fixed, imposed or held by plane strain
-  AlignedVector<double> px, py, pz;   // nodal loads at t_n (only with loads)
+  UnsetVector<double> px, py, pz;     // nodal loads at t_n (only with loads)
   std::vector<std::uint8_t> row_held; // per node row: some DOF is fixed or imposed
   // Per node row, with loads or platens: 1 if a load has a node in it, | 2 if a platen touches
   // one of its nodes in this step (empty without either).
@@ -120,7 +120,7 @@ struct SimulationCore {
   // The law's per-bar state arrays (LawKernels::state_arrays), the only per-bar state. The
   // bars' force over current length s = F / l lives only in per-thread plane buffers during a
   // step (see advance_rows).
-  std::vector<std::vector<double>> states;
+  std::vector<UnsetVector<double>> states;
   // Per bar row: some bar is not pristine (the law's pristine()): the row takes the general
   // kernel.
   std::vector<std::uint8_t> row_damaged;

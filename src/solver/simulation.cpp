@@ -15,19 +15,29 @@
 
 namespace ldem {
 
-std::vector<double> lumped_masses(const Lattice& lat, double rho,
+UnsetVector<double> lumped_masses(const Lattice& lat, double rho,
                                   const std::vector<double>& rho_m) {
   const double V = lat.L() * lat.L() * lat.L();
-  std::vector<double> m(lat.num_nodes());
+  UnsetVector<double> m(lat.num_nodes()); // (every node set below, by the threads together)
+  const std::int64_t nodes = lat.num_nodes();
   if (rho_m.empty()) {
-    for (index_t k = 0; k <= lat.nz(); ++k)
+    const std::int64_t planes = std::int64_t{lat.nz()} + 1;
+#pragma omp parallel for schedule(static) if (nodes > kParallelMinItems)
+    for (std::int64_t kk = 0; kk < planes; ++kk) {
+      const auto k = static_cast<index_t>(kk);
       for (index_t j = 0; j <= lat.ny(); ++j)
         for (index_t i = 0; i <= lat.nx(); ++i)
           m[lat.corner(i, j, k)] = rho * V * lat.modules_at_corner(i, j, k) / 16.0;
-    for (index_t c = lat.num_corners(); c < lat.num_nodes(); ++c)
-      m[c] = lat.node_present(c) ? 0.5 * rho * V : 0.0;
+    }
+#pragma omp parallel for schedule(static) if (nodes > kParallelMinItems)
+    for (std::int64_t c = lat.num_corners(); c < nodes; ++c)
+      m[static_cast<std::size_t>(c)] =
+          lat.node_present(static_cast<index_t>(c)) ? 0.5 * rho * V : 0.0;
     return m;
   }
+#pragma omp parallel for schedule(static) if (nodes > kParallelMinItems)
+  for (std::int64_t c = 0; c < nodes; ++c)
+    m[static_cast<std::size_t>(c)] = 0.0;
   for (index_t k = 0; k < lat.nz(); ++k)
     for (index_t j = 0; j < lat.ny(); ++j)
       for (index_t i = 0; i < lat.nx(); ++i) {
@@ -137,9 +147,14 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   done("step layout");
   const std::size_t slots = c.layout.slot_count;
   // Masses and held DOF by node number while the step is set up, then in the slots only.
-  std::vector<double> mass = lumped_masses(c.lat, c.table.spec().rho, c.table.rho_module());
-  c.mass.assign(slots, 0.0);
-  c.inv_mass.assign(slots, 0.0);
+  UnsetVector<double> mass = lumped_masses(c.lat, c.table.spec().rho, c.table.rho_module());
+  c.mass.resize(slots);
+  c.inv_mass.resize(slots);
+#pragma omp parallel for schedule(static) if (slots > kParallelMinItems)
+  for (std::int64_t q = 0; q < static_cast<std::int64_t>(slots); ++q) {
+    c.mass[static_cast<std::size_t>(q)] = 0.0;
+    c.inv_mass[static_cast<std::size_t>(q)] = 0.0;
+  }
   // The nodes of a shaped body's box that no present module has: no mass and no bar with a
   // stiffness, held where they are (a unit mass keeps the arithmetic finite; its node never
   // moves, so it adds no energy).
@@ -161,17 +176,45 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
               c.inv_mass.end(), 1.0);
   }
   done("masses");
-  // (The six arrays' pages touched by the threads together.)
-  AlignedVector<double>* const arrays[] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
-#pragma omp parallel for schedule(dynamic) if (slots > kParallelMinItems)
-  for (int a = 0; a < 6; ++a)
-    arrays[a]->assign(slots, 0.0);
+  // The six arrays, zeroed by the threads together (their first writes touch their pages); the
+  // stable step's estimate borrows them first if they have a slot for every node (below).
+  UnsetVector<double>* const arrays[] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
+  const auto zero_arrays = [&] {
+    const auto count = static_cast<std::int64_t>(slots);
+#pragma omp parallel for schedule(static) if (count > kParallelMinItems)
+    for (std::int64_t q = 0; q < count; ++q)
+      for (UnsetVector<double>* a : arrays)
+        (*a)[static_cast<std::size_t>(q)] = 0.0;
+  };
+  for (UnsetVector<double>* a : arrays)
+    a->resize(slots);
+  const bool lend = !c.opt.defer_time_step && slots >= c.lat.num_nodes();
+  if (!lend)
+    zero_arrays();
   done("displacements");
   set_platen_stiffness(c.table.ranges().E[1], c.table.ranges().rho[0]);
   const std::vector<DofMask> held = build_boundary(c);
   done("supports and loads");
   if (!c.opt.defer_time_step) {
-    c.stable = with_platens(compute_stable_step(c.lat, c.table, mass, held), c.cond);
+    // The displacement arrays lend their memory to the estimate's vectors and the bar states'
+    // (set by init_states below) to its other arrays where they have room, so that it needs
+    // no more memory than the steps do; the displacements zeroed after.
+    StableStepScratch scratch;
+    for (int a = 0; a < 6 && lend; ++a)
+      scratch.v[a] = arrays[a]->data();
+    c.states.resize(law_->state_arrays.size());
+    std::size_t lent = 6;
+    for (UnsetVector<double>& a : c.states) {
+      a.resize(c.layout.state_count);
+      for (std::size_t at = 0; lend && lent < 10 && at + c.lat.num_nodes() <= a.size();
+           at += c.lat.num_nodes())
+        scratch.v[lent++] = a.data() + at;
+    }
+    c.stable = with_platens(
+        compute_stable_step(c.lat, c.table, mass, held, nullptr, lend ? &scratch : nullptr),
+        c.cond);
+    if (lend)
+      zero_arrays();
     c.dt = time_step_by_rule(c.opt.step, c.stable, c.table.ranges().E[1], c.table.ranges().rho[0],
                              c.lat.L(), c.opt.damping);
     done(fmt::format("stable step ({} Lanczos iterations)", c.stable.iterations));
@@ -432,7 +475,7 @@ void Simulation::set_displacement(index_t node, Vec3 u) {
 void Simulation::append_displacements(index_t first, index_t count, std::vector<double>& out,
                                       bool previous) const {
   const SimulationCore& c = *core_;
-  for (const AlignedVector<double>* u : {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz})
+  for (const UnsetVector<double>* u : {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz})
     if ((u == &c.wx || u == &c.wy || u == &c.wz) == previous)
       c.for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
         out.insert(out.end(), u->begin() + q, u->begin() + q + run);
@@ -444,7 +487,7 @@ void Simulation::assign_displacements(index_t first, index_t count, const double
   SimulationCore& c = *core_;
   if (!previous)
     c.forget_motion(first, count);
-  for (AlignedVector<double>* u : {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz})
+  for (UnsetVector<double>* u : {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz})
     if ((u == &c.wx || u == &c.wy || u == &c.wz) == previous)
       c.for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
         if (c.layout.stored(q)) // (an absent node stays at rest)
@@ -456,7 +499,7 @@ void Simulation::assign_displacements(index_t first, index_t count, const double
 void Simulation::append_bar_states(std::size_t array, index_t first, index_t count,
                                    std::vector<double>& out) const {
   const SimulationCore& c = *core_;
-  const std::vector<double>& a = c.states[array];
+  const auto& a = c.states[array];
   c.layout.for_each_state_run(c.lat, first, count, [&](std::size_t q, index_t, index_t run) {
     const auto at = a.begin() + static_cast<std::ptrdiff_t>(q);
     out.insert(out.end(), at, at + run);
@@ -524,7 +567,7 @@ void Simulation::append_state(std::size_t array, index_t first, index_t count,
     return;
   }
   const SimulationCore& c = *core_;
-  const AlignedVector<double>* u[6] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
+  const UnsetVector<double>* u[6] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
   c.for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
     out.insert(out.end(), u[array]->begin() + q, u[array]->begin() + q + run);
   });
@@ -556,7 +599,7 @@ void Simulation::assign_state(std::size_t array, index_t first, index_t count, c
   SimulationCore& c = *core_;
   if (array < 3)
     c.forget_motion(first, count);
-  AlignedVector<double>* u[6] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
+  UnsetVector<double>* u[6] = {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz};
   c.for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
     if (c.layout.stored(q)) // (an absent node stays at rest)
       std::copy(in, in + run, u[array]->begin() + static_cast<std::ptrdiff_t>(q));
@@ -815,9 +858,9 @@ double Simulation::bytes_per_module() const {
   const StepLayout& l = c.layout;
   auto bytes = [](const auto& v) { return static_cast<double>(v.size() * sizeof(v[0])); };
   double total = 0.0;
-  for (const auto* v :
-       {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz, &c.mass, &c.inv_mass, &c.px, &c.py, &c.pz})
+  for (const auto* v : {&c.ux, &c.uy, &c.uz, &c.wx, &c.wy, &c.wz, &c.px, &c.py, &c.pz})
     total += bytes(*v);
+  total += bytes(c.mass) + bytes(c.inv_mass);
   for (const auto& s : c.states)
     total += bytes(s);
   total += bytes(c.held);

@@ -22,6 +22,7 @@
 #include "material/bar_table.hpp"
 #include "solver/stable_step.hpp"
 #include "solver/time_function.hpp"
+#include "util/aligned.hpp"
 
 #include <array>
 #include <cstdint>
@@ -104,7 +105,7 @@ struct Conditions {
 // With a density field (`rho_module`, one value per module; empty: rho everywhere) each module
 // lumps its own mass the same way. A shaped body's absent modules lump nothing: its nodes that
 // no present module has get no mass (the simulation holds them).
-std::vector<double> lumped_masses(const Lattice& lattice, double rho,
+UnsetVector<double> lumped_masses(const Lattice& lattice, double rho,
                                   const std::vector<double>& rho_module);
 
 struct LawKernels;

@@ -84,6 +84,101 @@ template <class F> void for_each_bar_of(index_t i, const UnitLinks& u, F&& f) {
   }
 }
 
+// What a link of a row reads at its other nodes (node other_base + i for the row's node i): x
+// by component, 1 / sqrt(m) and the held DOF (whether any is held in that row); its unit vector
+// and its bars' stiffness (k[i] per bar, or k[0] for all).
+struct LinkArrays {
+  double e[3];
+  const double* k;
+  const double *ox, *oy, *oz, *om;
+  const unsigned char* oh;
+  bool holds;
+};
+
+// The terms of one link's bar at the row's node i, added to ax, ay, az: k (e . (p_i - M^-1/2
+// x_other)) e, with p the row's M^-1/2 x by component (`len` apart). Holds: the other nodes'
+// held DOF count (M^-1/2 x is 0 there; x 1 where free, the same numbers), else they are read
+// as free.
+template <bool Holds, bool PerBar>
+inline void add_bar(const LinkArrays& L, index_t i, const double* __restrict p, std::size_t len,
+                    double& ax, double& ay, double& az) {
+  double sx = L.ox[i] * L.om[i], sy = L.oy[i] * L.om[i], sz = L.oz[i] * L.om[i];
+  if constexpr (Holds) {
+    sx *= L.oh[i] & 1u ? 0.0 : 1.0;
+    sy *= L.oh[i] & 2u ? 0.0 : 1.0;
+    sz *= L.oh[i] & 4u ? 0.0 : 1.0;
+  }
+  double proj = 0.0;
+  proj += L.e[0] * (p[i] - sx);
+  proj += L.e[1] * (p[len + i] - sy);
+  proj += L.e[2] * (p[2 * len + i] - sz);
+  const double kp = (PerBar ? L.k[i] : L.k[0]) * proj;
+  ax += kp * L.e[0];
+  ay += kp * L.e[1];
+  az += kp * L.e[2];
+}
+
+// Every link's bars at the row's nodes [lo, hi), each node's terms in the order of the links,
+// into acc: eight nodes at a time, their sums in registers (one link after another would load
+// and store them at every link).
+template <bool Holds, bool PerBar>
+void all_links(index_t lo, index_t hi, const LinkArrays* links, int count,
+               const double* __restrict p, std::size_t len, double* __restrict acc) {
+  constexpr index_t kLanes = 8;
+  index_t i = lo;
+  for (; i + kLanes <= hi; i += kLanes) {
+    double ax[kLanes] = {}, ay[kLanes] = {}, az[kLanes] = {};
+    const double* __restrict const px = p + i;
+    const double* __restrict const py = p + len + i;
+    const double* __restrict const pz = p + 2 * len + i;
+    for (int l = 0; l < count; ++l) {
+      const LinkArrays& L = links[l];
+      const double e0 = L.e[0], e1 = L.e[1], e2 = L.e[2], k0 = L.k[0];
+      const double* __restrict const ox = L.ox + i;
+      const double* __restrict const oy = L.oy + i;
+      const double* __restrict const oz = L.oz + i;
+      const double* __restrict const om = L.om + i;
+      const double* __restrict const k = L.k + i;
+      const unsigned char* __restrict const oh = L.oh + i;
+      // (The other rows' values 8 lines ahead: more streams than the hardware follows.)
+      __builtin_prefetch(ox + 64);
+      __builtin_prefetch(oy + 64);
+      __builtin_prefetch(oz + 64);
+      __builtin_prefetch(om + 64);
+#pragma omp simd
+      for (index_t v = 0; v < kLanes; ++v) {
+        double sx = ox[v] * om[v], sy = oy[v] * om[v], sz = oz[v] * om[v];
+        if constexpr (Holds) {
+          sx *= oh[v] & 1u ? 0.0 : 1.0;
+          sy *= oh[v] & 2u ? 0.0 : 1.0;
+          sz *= oh[v] & 4u ? 0.0 : 1.0;
+        }
+        double proj = 0.0;
+        proj += e0 * (px[v] - sx);
+        proj += e1 * (py[v] - sy);
+        proj += e2 * (pz[v] - sz);
+        const double kp = (PerBar ? k[v] : k0) * proj;
+        ax[v] += kp * e0;
+        ay[v] += kp * e1;
+        az[v] += kp * e2;
+      }
+    }
+    for (index_t v = 0; v < kLanes; ++v) {
+      acc[i + v] = ax[v];
+      acc[len + i + v] = ay[v];
+      acc[2 * len + i + v] = az[v];
+    }
+  }
+  for (; i < hi; ++i) {
+    double ax = 0.0, ay = 0.0, az = 0.0;
+    for (int l = 0; l < count; ++l)
+      add_bar<Holds, PerBar>(links[l], i, p, len, ax, ay, az);
+    acc[i] = ax;
+    acc[len + i] = ay;
+    acc[2 * len + i] = az;
+  }
+}
+
 // Largest eigenvalue of a symmetric tridiagonal matrix (diagonal a, off-diagonal b[1..m-1])
 // by bisection on Sturm sequence counts.
 double tridiagonal_max_eigenvalue(const std::vector<double>& a, const std::vector<double>& b) {
@@ -119,21 +214,32 @@ double tridiagonal_max_eigenvalue(const std::vector<double>& a, const std::vecto
 } // namespace
 
 StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
-                               const std::vector<double>& mass,
+                               std::span<const double> mass,
                                const std::vector<unsigned char>& held_given,
-                               const StableStepParts* parts) {
+                               const StableStepParts* parts, const StableStepScratch* scratch) {
   std::vector<double> kb_own;
   const double* const kb = bar_stiffness(lat, table, kb_own);
   const std::size_t n = lat.num_nodes();
   // The rows of nodes this process owns (a row along x is never split between processes).
-  std::vector<NodeRow> rows = node_rows(lat);
+  const std::vector<NodeRow> all_rows = node_rows(lat);
+  std::vector<NodeRow> rows = all_rows;
   if (parts)
     rows.erase(std::remove_if(rows.begin(), rows.end(),
                               [&](const NodeRow& r) { return !parts->owned[r.first]; }),
                rows.end());
   const std::int64_t nrows = static_cast<std::int64_t>(rows.size());
   // 1 / sqrt(m) and the held DOF of every node; a ghost node's from its owner.
-  AlignedVector<double> rsm(n); // (large arrays: huge pages, util/aligned.hpp)
+  // Arrays of n doubles: the caller's (StableStepScratch) where it lends them, else the
+  // estimate's own (huge pages, util/aligned.hpp; first written by the threads together).
+  std::vector<UnsetVector<double>> own;
+  own.reserve(10);
+  const auto array = [&](std::size_t a) {
+    if (scratch && scratch->v[a])
+      return scratch->v[a];
+    own.emplace_back(n);
+    return own.back().data();
+  };
+  double* const rsm = array(9);
   std::vector<unsigned char> held(n, 0);
 #pragma omp parallel for schedule(static) if (n > kParallelMinItems)
   for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
@@ -152,61 +258,135 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       held[i] = static_cast<unsigned char>(v[3 * i + 1]);
     }
   }
-  auto free_dof = [&](index_t node, int d) { return held[node] & (1u << d) ? 0.0 : 1.0; };
-  // Calls f(node) for the nodes of the owned rows, row by row (threads share the rows).
-  auto for_owned = [&](auto&& f) {
-#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
-    for (std::int64_t r = 0; r < nrows; ++r)
-      f(rows[r]);
+  auto free_dof = [&](std::size_t node, int d) { return held[node] & (1u << d) ? 0.0 : 1.0; };
+  // The Lanczos vectors by component, indexed by node (q, the one before it, w).
+  struct Field {
+    double* c[3];
   };
+  const auto field = [&](std::size_t first) {
+    return Field{{array(first), array(first + 1), array(first + 2)}};
+  };
+  Field q = field(0), q_prev = field(3), w = field(6);
+  // Per row of the body (node_rows' order): whether some DOF of its nodes is held; a row
+  // without one takes M^-1/2 x as x times 1 / sqrt(m) (times 1, the same numbers).
+  const std::int64_t corner_rows = (std::int64_t{lat.ny()} + 1) * (lat.nz() + 1);
+  const auto row_of = [&](std::int64_t node) {
+    return node < lat.num_corners() ? node / (lat.nx() + 1)
+                                    : corner_rows + (node - lat.num_corners()) / lat.nx();
+  };
+  std::vector<unsigned char> row_holds(all_rows.size(), 0);
+  for (std::size_t i = 0; i < n; ++i)
+    if (held[i])
+      row_holds[static_cast<std::size_t>(row_of(static_cast<std::int64_t>(i)))] = 1;
+  // Per row: whether its nodes but the first and the last have one mass and no held DOF (the
+  // inner nodes of a box's row).
+  std::vector<unsigned char> row_even(all_rows.size(), 0);
+#pragma omp parallel for schedule(static) if (n > kParallelMinItems)
+  for (std::size_t r = 0; r < all_rows.size(); ++r) {
+    const std::size_t a = all_rows[r].first, b = a + all_rows[r].length;
+    bool even = b - a >= 3;
+    for (std::size_t i = a + 1; i + 1 < b && even; ++i)
+      even = mass[i] == mass[a + 1] && rsm[i] == rsm[a + 1] && held[i] == 0;
+    row_even[r] = even;
+  }
 
-  // y = M^-1/2 K M^-1/2 x on the owned nodes (x, y interleaved: 3 per node), gathered per node
-  // from M^-1/2 x on the free DOF (a ghost node's from its owner).
-  std::vector<double> scaled(3 * n, 0.0);
-  auto apply = [&](const AlignedVector<double>& x, AlignedVector<double>& y) {
-    for_owned([&](const NodeRow& row) {
-      for (index_t i = 0; i < row.length; ++i) {
-        const index_t node = row.first + i;
+  // y = M^-1/2 K M^-1/2 x on the owned nodes, gathered per node from M^-1/2 x on the free DOF
+  // (a ghost node's from its owner's x), a row at a time; and each row's sum of y . x in
+  // row_sums, added as row_sum() adds (in order along the row, node by node x, y, z).
+  std::vector<double> ghosts(parts ? 3 * n : 0);
+  std::vector<double> row_sums(rows.size());
+  auto apply = [&](const Field& x, const Field& y) {
+    if (parts) {
+      for (std::size_t i = 0; i < n; ++i)
         for (int d = 0; d < 3; ++d)
-          scaled[3 * node + d] = x[3 * node + d] * rsm[node] * free_dof(node, d);
-      }
-    });
-    if (parts)
-      parts->exchange(scaled);
-    // Link by link along the row, each node's terms added in the order of its links (the
-    // numbers of a loop over each node's links), into the row's sums.
-    for_owned([&](const NodeRow& row) {
+          ghosts[3 * i + d] = parts->owned[i] ? x.c[d][i] : 0.0;
+      parts->exchange(ghosts);
+      for (std::size_t i = 0; i < n; ++i)
+        for (int d = 0; d < 3; ++d)
+          x.c[d][i] = ghosts[3 * i + d];
+    }
+#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
+    for (std::int64_t r = 0; r < nrows; ++r) {
+      const NodeRow& row = rows[r];
       const UnitLinks u(lat, table, kb, row);
-      thread_local std::vector<double> acc;
-      acc.assign(3 * std::size_t{row.length}, 0.0);
-      const double* const s = scaled.data();
+      const std::size_t len = row.length, first = row.first;
+      // The row's M^-1/2 x (p) and its nodes' sums (acc), by component.
+      thread_local AlignedVector<double> buf;
+      buf.resize(6 * len); // (every value set below)
+      double* __restrict const p = buf.data();
+      double* __restrict const acc = p + 3 * len;
+      for (int d = 0; d < 3; ++d)
+        for (std::size_t i = 0; i < len; ++i)
+          p[d * len + i] = x.c[d][first + i] * rsm[first + i] * free_dof(first + i, d);
+      // Each link's arrays (the other nodes: node other_base + i for the row's node i), and
+      // the nodes [f0, f1) where every link has a bar of its inner stiffness (or per bar).
+      LinkArrays links[kMaxRowLinks];
+      int active = 0;
+      bool holds = false;
+      index_t f0 = 0, f1 = row.length;
       for (int l = 0; l < u.count; ++l) {
         const RowLink& L = u.links[l];
-        const double e0 = u.e[l][0], e1 = u.e[l][1], e2 = u.e[l][2];
-        for (index_t i = L.ilo; i < L.ihi; ++i) {
-          const std::size_t a = 3 * (std::size_t{row.first} + i),
-                            b = 3 * static_cast<std::size_t>(L.other_base + i);
-          double proj = 0.0;
-          proj += e0 * (s[a] - s[b]);
-          proj += e1 * (s[a + 1] - s[b + 1]);
-          proj += e2 * (s[a + 2] - s[b + 2]);
-          const double kp = u.k(l, i) * proj;
-          acc[3 * i] += kp * e0;
-          acc[3 * i + 1] += kp * e1;
-          acc[3 * i + 2] += kp * e2;
+        if (L.ihi <= L.ilo)
+          continue;
+        const std::int64_t o = L.other_base;
+        const bool other_holds = row_holds[static_cast<std::size_t>(row_of(o + L.ilo))] != 0;
+        holds = holds || other_holds;
+        links[active++] = {{u.e[l][0], u.e[l][1], u.e[l][2]},
+                           kb ? kb + L.bar_base : &u.k_inner[l],
+                           x.c[0] + o,
+                           x.c[1] + o,
+                           x.c[2] + o,
+                           rsm + o,
+                           held.data() + o,
+                           other_holds};
+        f0 = std::max<index_t>(f0, L.ilo + 1);
+        f1 = std::min<index_t>(f1, L.ihi - 1);
+      }
+      f1 = std::max(f0, f1);
+      // The nodes outside [f0, f1) one by one, each node's terms in the order of its links.
+      const auto end_node = [&](index_t i) {
+        double ax = 0.0, ay = 0.0, az = 0.0;
+        for (int l = 0, a = 0; l < u.count; ++l) {
+          const RowLink& L = u.links[l];
+          if (L.ihi <= L.ilo)
+            continue;
+          LinkArrays at = links[a++];
+          if (i < L.ilo || i >= L.ihi)
+            continue;
+          const double k = u.k(l, i);
+          at.k = &k;
+          at.holds ? add_bar<true, false>(at, i, p, len, ax, ay, az)
+                   : add_bar<false, false>(at, i, p, len, ax, ay, az);
         }
+        acc[i] = ax;
+        acc[len + i] = ay;
+        acc[2 * len + i] = az;
+      };
+      for (index_t i = 0; i < f0; ++i)
+        end_node(i);
+      for (index_t i = f1; i < row.length; ++i)
+        end_node(i);
+      // The nodes [f0, f1), every link at once (the sums held in registers).
+      if (holds)
+        kb ? all_links<true, true>(f0, f1, links, active, p, len, acc)
+           : all_links<true, false>(f0, f1, links, active, p, len, acc);
+      else
+        kb ? all_links<false, true>(f0, f1, links, active, p, len, acc)
+           : all_links<false, false>(f0, f1, links, active, p, len, acc);
+      for (int d = 0; d < 3; ++d)
+        for (std::size_t i = 0; i < len; ++i)
+          y.c[d][first + i] = acc[d * len + i] * rsm[first + i] * free_dof(first + i, d);
+      double s = 0.0;
+      for (std::size_t i = first; i < first + len; ++i) {
+        s += y.c[0][i] * x.c[0][i];
+        s += y.c[1][i] * x.c[1][i];
+        s += y.c[2][i] * x.c[2][i];
       }
-      for (index_t i = 0; i < row.length; ++i) {
-        const index_t node = row.first + i;
-        for (int d = 0; d < 3; ++d)
-          y[3 * node + d] = acc[3 * i + d] * rsm[node] * free_dof(node, d);
-      }
-    });
+      row_sums[r] = s;
+    }
   };
-  // a . b over the owned nodes: each row's products added in order along it, the rows' sums
-  // exactly (and with the other processes' rows), whatever their order.
-  std::vector<double> row_sums(rows.size());
-  // The rows' sums in row_sums, added exactly.
+  // The rows' sums in row_sums added exactly (and with the other processes' rows), whatever
+  // their order.
   const auto sum_rows = [&] {
     // Scaled by a power of two below the largest row's sum of all processes, into the fixed
     // point's range (ExactSum is made for energies in J; these sums can reach 1e30).
@@ -224,17 +404,6 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       parts->sum(total);
     return std::ldexp(total.value(), e);
   };
-  auto dot = [&](const AlignedVector<double>& a, const AlignedVector<double>& b) {
-#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
-    for (std::int64_t r = 0; r < nrows; ++r) {
-      double s = 0.0;
-      const std::size_t q0 = 3 * std::size_t{rows[r].first};
-      for (std::size_t q = q0; q < q0 + 3 * std::size_t{rows[r].length}; ++q)
-        s += a[q] * b[q];
-      row_sums[r] = s;
-    }
-    return sum_rows();
-  };
 
   StableStep out;
   // Gershgorin: every eigenvalue lies below the largest absolute row sum (the rows in parallel:
@@ -244,15 +413,24 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
   for (std::int64_t r = 0; r < nrows; ++r) {
     const NodeRow& row = rows[r];
     const UnitLinks u(lat, table, kb, row);
+    // A box's row of one material whose own and linked inner nodes have one mass and no held
+    // DOF: its nodes 3 to length - 4 take node 2's numbers (each of their links has the one
+    // stiffness of its inner bars, UnitLinks::k_inner, and reaches inner nodes of its row), so
+    // they are skipped; the bound is the same.
+    bool skip = !kb && row.length >= 7 && row_even[static_cast<std::size_t>(row_of(row.first))];
+    for (int l = 0; l < u.count && skip; ++l)
+      skip = row_even[static_cast<std::size_t>(row_of(u.links[l].other_base + 2))] != 0;
     for (index_t i = 0; i < row.length; ++i) {
+      if (skip && i == 3)
+        i = row.length - 3;
       const index_t node = row.first + i;
       double diag[3][3] = {}, off[3] = {};
       for_each_bar_of(i, u, [&](index_t other, const double* e, double k) {
         const double eo = std::abs(e[0]) * free_dof(other, 0) +
                           std::abs(e[1]) * free_dof(other, 1) + std::abs(e[2]) * free_dof(other, 2);
         for (int p = 0; p < 3; ++p) {
-          for (int q = 0; q < 3; ++q)
-            diag[p][q] += k * e[p] * e[q] / mass[node] * free_dof(node, q);
+          for (int c = 0; c < 3; ++c)
+            diag[p][c] += k * e[p] * e[c] / mass[node] * free_dof(node, c);
           off[p] += k * std::abs(e[p]) * eo * rsm[node] * rsm[other];
         }
       });
@@ -269,7 +447,6 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
 
   // Lanczos from a start vector drawn per DOF of the body (a hash of its number), the same
   // whichever process holds the node.
-  AlignedVector<double> q(3 * n), q_prev(3 * n, 0.0), w(3 * n, 0.0);
 #pragma omp parallel for schedule(static) if (n > kParallelMinItems)
   for (std::int64_t node = 0; node < static_cast<std::int64_t>(n); ++node) {
     const std::uint64_t g = parts ? parts->global_node[node] : node;
@@ -278,37 +455,50 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
       z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
       z ^= z >> 31;
-      q[3 * node + d] = (static_cast<double>(z >> 11) * 0x1.0p-53 - 0.5) *
-                        free_dof(static_cast<index_t>(node), d);
+      q.c[d][node] = (static_cast<double>(z >> 11) * 0x1.0p-53 - 0.5) *
+                     free_dof(static_cast<std::size_t>(node), d);
+      q_prev.c[d][node] = 0.0;
+      w.c[d][node] = 0.0;
     }
   }
-  const double q_norm = std::sqrt(dot(q, q));
-  for (double& v : q)
-    v /= q_norm;
-  std::vector<double> alpha, beta{0.0};
-  double theta = 0.0, theta_prev = 0.0;
-  const int max_iter = 400;
-  int stable_iters = 0;
-  // w -= a q + b_prev q_prev on the owned rows, and w . w summed as dot() sums (row by row,
-  // each row in order), in one pass.
-  const auto update_and_norm = [&](double a, double b_prev) {
+  // Calls f(i, s) for the nodes of the owned rows, in order along each row, s the row's sum
+  // (from 0) to which f adds its node's terms; the rows' sums in row_sums, and their total.
+  const auto row_sum = [&](auto&& f) {
 #pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
     for (std::int64_t r = 0; r < nrows; ++r) {
       double s = 0.0;
-      const std::size_t q0 = 3 * std::size_t{rows[r].first};
-      for (std::size_t i = q0; i < q0 + 3 * std::size_t{rows[r].length}; ++i) {
-        w[i] -= a * q[i] + b_prev * q_prev[i];
-        s += w[i] * w[i];
-      }
+      for (std::size_t i = rows[r].first; i < std::size_t{rows[r].first} + rows[r].length; ++i)
+        f(i, s);
       row_sums[r] = s;
     }
     return sum_rows();
   };
+  const double q_norm = std::sqrt(row_sum([&](std::size_t i, double& s) {
+    for (int d = 0; d < 3; ++d)
+      s += q.c[d][i] * q.c[d][i];
+  }));
+  const auto scale_into = [&](Field& to, const Field& from, double by) {
+#pragma omp parallel for schedule(static) if (n > kParallelMinItems)
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i)
+      for (int d = 0; d < 3; ++d)
+        to.c[d][i] = from.c[d][i] / by;
+  };
+  scale_into(q, q, q_norm);
+  std::vector<double> alpha, beta{0.0};
+  double theta = 0.0, theta_prev = 0.0;
+  const int max_iter = 400;
+  int stable_iters = 0;
   for (int it = 0; it < max_iter; ++it) {
     apply(q, w);
-    const double a = dot(w, q);
+    const double a = sum_rows(); // w . q
     const double b_prev = beta.back();
-    const double ww = update_and_norm(a, b_prev);
+    // w -= a q + b_prev q_prev on the owned rows, and w . w.
+    const double ww = row_sum([&](std::size_t i, double& s) {
+      for (int d = 0; d < 3; ++d) {
+        w.c[d][i] -= a * q.c[d][i] + b_prev * q_prev.c[d][i];
+        s += w.c[d][i] * w.c[d][i];
+      }
+    });
     alpha.push_back(a);
     theta = tridiagonal_max_eigenvalue(alpha, beta);
     out.iterations = it + 1;
@@ -324,9 +514,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       break; // invariant subspace found: theta is exact
     beta.push_back(b);
     std::swap(q_prev, q); // q = w / b, where q_prev was
-#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(w.size()); ++i)
-      q[i] = w[i] / b;
+    scale_into(q, w, b);
   }
   out.omega_max = std::sqrt(theta);
   out.dt = 2.0 / out.omega_max;

@@ -7,6 +7,7 @@
 #include "material/bar_table.hpp"
 
 #include <functional>
+#include <span>
 #include <vector>
 
 namespace ldem {
@@ -35,14 +36,22 @@ struct StableStepParts {
   std::function<double(double)> max;
 };
 
+// Arrays compute_stable_step may take instead of allocating its own (a simulation's arrays
+// before its first step: the displacements, the bar states), each of at least the lattice's
+// number of nodes or nullptr (then its own): its Lanczos vectors q, the one before and w by
+// component (0 to 8) and 1 / sqrt(m) (9). What they hold afterwards is unspecified.
+struct StableStepScratch {
+  double* v[10] = {};
+};
+
 // Lanczos iteration on M^-1/2 K M^-1/2 restricted to the free DOF (converged to 1e-7 in
 // the top Ritz value) and a Gershgorin row-sum bound on the same matrix. `held` has one
 // DofMask per node (bit d set: DOF d is fixed or imposed) and may be empty (all free).
 // Dot products are summed row by row of nodes (in order along x), the rows' sums exactly, so
 // the result does not depend on the thread count nor, with `parts`, on the processes.
 StableStep compute_stable_step(const Lattice& lattice, const BarTable& table,
-                               const std::vector<double>& mass,
-                               const std::vector<unsigned char>& held,
-                               const StableStepParts* parts = nullptr);
+                               std::span<const double> mass, const std::vector<unsigned char>& held,
+                               const StableStepParts* parts = nullptr,
+                               const StableStepScratch* scratch = nullptr);
 
 } // namespace ldem

@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <new>
 #include <sys/mman.h>
+#include <utility>
 #include <vector>
 
 namespace ldem {
@@ -38,6 +39,22 @@ template <class T> struct CacheLineAllocator {
 };
 
 template <class T> using AlignedVector = std::vector<T, CacheLineAllocator<T>>;
+
+// A CacheLineAllocator that leaves the elements of a vector grown without a value (vector(n),
+// resize(n)) unset: for large arrays that the threads then write together, so that their first
+// writes (a page fault per page) are shared too. Such a vector must be written before it is
+// read; assign(n, value) still sets every element.
+template <class T> struct UnsetAllocator : CacheLineAllocator<T> {
+  template <class U> struct rebind { using other = UnsetAllocator<U>; };
+  UnsetAllocator() = default;
+  template <class U> UnsetAllocator(const UnsetAllocator<U>&) noexcept {}
+  template <class U> void construct(U* p) noexcept { ::new (static_cast<void*>(p)) U; }
+  template <class U, class... A> void construct(U* p, A&&... a) {
+    ::new (static_cast<void*>(p)) U(std::forward<A>(a)...);
+  }
+};
+
+template <class T> using UnsetVector = std::vector<T, UnsetAllocator<T>>;
 
 // n rounded up to whole cache lines of doubles.
 constexpr std::size_t round_up_to_line(std::size_t n) {
