@@ -185,7 +185,7 @@ index_t visit_law_row(const SimulationCore& core, std::size_t r, F&& lane, T tak
   // A shaped body's area factors per bar (StepLayout::bar_code).
   const std::uint8_t* __restrict code =
       core.layout.coded()
-          ? core.layout.bar_code.data() + static_cast<std::size_t>(core.layout.state_origin[r])
+          ? core.layout.bar_code.data() + static_cast<std::size_t>(core.layout.code_origin[r])
           : nullptr;
   // A compact layout (StepLayout::row_window) holds the nodes of the bars [p0, p1) only; the
   // row's other bars are absent (area factor 0), their stretch taken at rest.
@@ -330,7 +330,7 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
     double* __restrict e = strain ? strain->data() + b0 : nullptr;
     const std::uint8_t* __restrict code =
         core.layout.coded()
-            ? core.layout.bar_code.data() + static_cast<std::size_t>(core.layout.state_origin[r])
+            ? core.layout.bar_code.data() + static_cast<std::size_t>(core.layout.code_origin[r])
             : nullptr;
     int past = 0;
     // (A compact layout holds the nodes of the bars [p0, p1) only: the others are absent.)

@@ -287,9 +287,11 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
                     core.uz.data() + c0,
                     s_plane + fi.plane_offset + std::size_t{fi.plane_stride} * row.j +
                         static_cast<std::size_t>(p0)};
-    // (The row's states and codes at its bar p0, StepLayout::state_origin.)
-    const auto q0 = static_cast<std::size_t>(core.layout.state_origin[r] + p0);
-    const std::uint8_t* code = core.layout.coded() ? core.layout.bar_code.data() + q0 : nullptr;
+    // (The row's codes at its bar p0, StepLayout::code_origin.)
+    const std::uint8_t* code = core.layout.coded()
+                                   ? core.layout.bar_code.data() +
+                                         static_cast<std::size_t>(core.layout.code_origin[r] + p0)
+                                   : nullptr;
     const typename Law::Row constants = Law::row(core.table, row.family, b0);
     std::array<double*, kStates> states = core.row_states<kStates>(r);
     for (double*& p : states)

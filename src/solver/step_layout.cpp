@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <unordered_map>
 
 namespace ldem {
 
@@ -24,10 +25,20 @@ constexpr bool kTrimRows = true;
 constexpr bool kTrimRows = false;
 #endif
 
+// A hash of `count` bytes and a seed (FNV-1a, then mixed): to find rows kept with the same
+// bytes, which are then compared.
+std::uint64_t hash_bytes(const std::uint8_t* p, std::size_t count, std::uint64_t seed) {
+  std::uint64_t h = 0xcbf29ce484222325ull ^ (seed * 0x9E3779B97F4A7C15ull);
+  for (std::size_t i = 0; i < count; ++i)
+    h = (h ^ p[i]) * 0x100000001b3ull;
+  return h ^ (h >> 29);
+}
+
 // A shaped body's node row r (of n nodes and nl links): its vectors of 8 nodes whose every
 // lane has every link at area factor 1 (the longest run of them, [lo, hi)) and, for the others
 // in order, each link's lanes: the present bars and their area factors from the bars' codes.
-void add_row_span(StepLayout& out, std::size_t r, const RowLink* links, int nl, std::int64_t n) {
+void add_row_span(StepLayout& out, std::size_t r, const RowLink* links, int nl, std::int64_t n,
+                  std::unordered_multimap<std::uint64_t, std::size_t>& seen) {
   const auto lanes_of = [&](const RowLink& L, std::int64_t i) {
     EdgeLanes e{0, 0, 0, 0, 0, 0};
     for (std::int64_t q = std::max<std::int64_t>(L.ilo, i);
@@ -87,13 +98,32 @@ void add_row_span(StepLayout& out, std::size_t r, const RowLink* links, int nl, 
       }
   if (from >= to)
     from = to = 0;
-  out.row_span[r] = {n, nl, lo, hi, out.edge_lanes.size(), from, to};
+  // The masked vectors' lanes; a row whose are the same as an earlier row's shares them (a
+  // prism's rows along its axis).
+  std::vector<EdgeLanes> lanes;
   for (std::int64_t i = from; i < to; i += 8) {
     if (i >= lo && i + 8 <= hi)
       continue;
     for (int l = 0; l < kMaxRowLinks; ++l)
-      out.edge_lanes.push_back(l < nl ? lanes_of(links[l], i) : EdgeLanes{0, 0, 0, 0, 0, 0});
+      lanes.push_back(l < nl ? lanes_of(links[l], i) : EdgeLanes{0, 0, 0, 0, 0, 0});
   }
+  const auto* const bytes = reinterpret_cast<const std::uint8_t*>(lanes.data());
+  const std::size_t count = lanes.size() * sizeof(EdgeLanes);
+  const std::uint64_t key = hash_bytes(bytes, count, count);
+  std::size_t begin = out.edge_lanes.size();
+  bool found = false;
+  for (auto [it, end] = seen.equal_range(key); it != end && !found; ++it)
+    if (it->second + lanes.size() <= out.edge_lanes.size() &&
+        std::equal(bytes, bytes + count,
+                   reinterpret_cast<const std::uint8_t*>(out.edge_lanes.data() + it->second))) {
+      begin = it->second;
+      found = true;
+    }
+  if (!found) {
+    out.edge_lanes.insert(out.edge_lanes.end(), lanes.begin(), lanes.end());
+    seen.emplace(key, begin);
+  }
+  out.row_span[r] = {n, nl, lo, hi, begin, from, to};
 }
 
 // The kinds of node rows and each row's links (link_const, edge_lanes, row_kinds, row_kind,
@@ -109,6 +139,7 @@ void build_row_links(StepLayout& out, const Lattice& lat,
   out.row_kind.resize(out.node_rows.size());
   if (out.coded())
     out.row_span.resize(out.node_rows.size());
+  std::unordered_multimap<std::uint64_t, std::size_t> spans_seen; // (add_row_span)
   for (std::size_t r = 0; r < out.node_rows.size(); ++r) {
     RowLink links[kMaxRowLinks];
     const int nl = row_links(lat, out.node_rows[r], links, out.slots);
@@ -182,7 +213,7 @@ void build_row_links(StepLayout& out, const Lattice& lat,
     }
     out.row_kind[r] = static_cast<std::uint16_t>(t);
     if (out.coded())
-      add_row_span(out, r, links, nl, n);
+      add_row_span(out, r, links, nl, n, spans_seen);
   }
 }
 
@@ -238,27 +269,43 @@ void compact_rows(StepLayout& out, const Lattice& lat) {
     out.bar_rows[br].a_slot = slot0(0);
     out.bar_rows[br].b_slot = slot0(1);
   }
-  // Each bar row's bars [p0, p1) in the state arrays and bar_code (from an index no less than
-  // p0, so that every row's index of i = 0 is one), then the rows at rest.
+  // Each bar row's bars [p0, p1) in the state arrays (from an index no less than p0, so that
+  // every row's index of i = 0 is one), then the rows at rest. Their codes likewise, but a row
+  // whose codes are already kept (a prism's or cylinder's rows that differ only in their place
+  // along its axis) takes them there.
   std::vector<std::uint8_t> code;
+  // (p0, p1 and a hash of the codes) -> the origins of the rows kept with them
+  std::unordered_multimap<std::uint64_t, std::int64_t> seen;
   out.state_origin.resize(out.bar_rows.size());
+  out.code_origin.resize(out.bar_rows.size());
   std::int64_t q = 0;
   for (std::size_t br = 0; br < out.bar_rows.size(); ++br) {
     const BarRow& row = out.bar_rows[br];
     q = std::max<std::int64_t>(q, row.p0);
     out.state_origin[br] = q - row.p0;
-    const std::size_t b0 = static_cast<std::size_t>(lat.bar(static_cast<Family>(row.family), 0,
-                                                            row.j, row.k));
-    code.resize(static_cast<std::size_t>(q + (row.p1 - row.p0)), 0);
-    std::copy(out.bar_code.begin() + static_cast<std::ptrdiff_t>(b0 + row.p0),
-              out.bar_code.begin() + static_cast<std::ptrdiff_t>(b0 + row.p1),
-              code.begin() + q);
     q += row.p1 - row.p0;
+    const std::uint8_t* const from =
+        out.bar_code.data() + lat.bar(static_cast<Family>(row.family), 0, row.j, row.k) + row.p0;
+    const auto len = static_cast<std::size_t>(row.p1 - row.p0);
+    const std::uint64_t key = hash_bytes(from, len, (std::uint64_t{row.p0} << 32) | row.p1);
+    std::int64_t origin = -1;
+    for (auto [it, end] = seen.equal_range(key); it != end && origin < 0; ++it)
+      if (it->second + row.p1 <= static_cast<std::int64_t>(code.size()) &&
+          std::equal(from, from + len, code.begin() + it->second + row.p0))
+        origin = it->second;
+    if (origin < 0) {
+      const std::int64_t c = std::max<std::int64_t>(static_cast<std::int64_t>(code.size()), row.p0);
+      origin = c - row.p0;
+      code.resize(static_cast<std::size_t>(c), 0);
+      code.insert(code.end(), from, from + len);
+      seen.emplace(key, origin);
+    }
+    out.code_origin[br] = origin;
   }
   out.rest_state = static_cast<std::size_t>(q);
   out.rest_stride = lat.nx() + 9ull; // (a row has at most nx + 1 bars)
   out.state_count = out.rest_state + kFamilies * out.rest_stride;
-  code.resize(out.state_count, 0);
+  code.resize(code.size() + 64, 0); // (a line of zeros after the last row's codes)
   out.bar_code = std::move(code);
   for (std::size_t r = 0; r < nr; ++r) {
     RowLink links[kMaxRowLinks];
@@ -410,6 +457,8 @@ StepLayout build_step_layout(const Lattice& lat, const BarTable& table,
       const BarRow& row = out.bar_rows[r];
       out.state_origin[r] = lat.bar(static_cast<Family>(row.family), 0, row.j, row.k);
     }
+    if (coded)
+      out.code_origin = out.state_origin;
     out.row_origin.resize(out.node_rows.size());
     for (std::size_t r = 0; r < out.node_rows.size(); ++r) {
       const NodeRow& row = out.node_rows[r];

@@ -139,6 +139,10 @@ struct StepLayout {
   // 0) per family (rest(f)), which its other bars (absent) read and nothing writes.
   // state_count: the arrays' length.
   std::vector<std::int64_t> state_origin;
+  // A shaped body (coded()): per bar row, the index in bar_code of its bar i = 0 (index =
+  // code_origin + i). A compact layout keeps each bar row's codes of [p0, p1) only, and rows
+  // with the same bars [p0, p1) and codes share them.
+  std::vector<std::int64_t> code_origin;
   std::size_t state_count = 0, rest_state = 0, rest_stride = 0;
   std::size_t rest(int family) const {
     return rest_state + rest_stride * static_cast<std::size_t>(family);
