@@ -7,46 +7,52 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 
 namespace ldem {
 
 namespace {
 
 // Undamaged axial stiffness EA / l0 of every bar (including the boundary area factor): a
-// per-bar table's own array, else `own` filled from the families' (planes of bars in parallel);
-// nullptr for a box of one material, whose rows of links take their stiffness from UnitLinks.
-const double* bar_stiffness(const Lattice& lat, const BarTable& table, std::vector<double>& own) {
+// per-bar table's own array; nullptr for a body of one material, whose rows of links take their
+// stiffness from UnitLinks (a shaped body's from `quarters`, filled here: 4 times each bar's
+// area factor, a byte per bar where the stiffness would take 8; planes of bars in parallel).
+const double* bar_stiffness(const Lattice& lat, const BarTable& table,
+                            std::vector<std::uint8_t>& quarters) {
   if (table.per_bar())
     return table.k_bar().data();
   if (!lat.shaped())
     return nullptr;
-  own.resize(lat.num_bars());
+  quarters.resize(lat.num_bars());
   for (int f = 0; f < kFamilies; ++f) {
     const FamilyInfo& fi = lat.family(f);
-    const double kf = table.family(f).k;
     const auto planes = static_cast<std::int64_t>(fi.nk);
 #pragma omp parallel for schedule(static) if (std::int64_t{fi.ni} * fi.nj * fi.nk > kParallelMinItems)
     for (std::int64_t kk = 0; kk < planes; ++kk)
       for (index_t j = 0; j < fi.nj; ++j)
         for (index_t i = 0; i < fi.ni; ++i)
-          own[lat.bar(static_cast<Family>(f), i, j, static_cast<index_t>(kk))] =
-              kf * lat.area_factor(static_cast<Family>(f), i, j, static_cast<index_t>(kk));
+          quarters[lat.bar(static_cast<Family>(f), i, j, static_cast<index_t>(kk))] =
+              static_cast<std::uint8_t>(
+                  4.0 * lat.area_factor(static_cast<Family>(f), i, j, static_cast<index_t>(kk)));
   }
-  return own.data();
+  return nullptr;
 }
 
-// A row's links with their unit vectors (each r0 / |r0|) and their bars' stiffness: `kb`'s, or
-// without it (a box of one material) the family's k times the bar's area factor, which along a
-// link's bars changes only at its first and last (the body's faces across x): those two and
-// one for the bars between, the numbers bar_stiffness would store.
+// A row's links with their unit vectors (each r0 / |r0|) and their bars' stiffness: `kb`'s;
+// in a shaped body of one material the family's k times a quarter of the bar's `quarters` (the
+// numbers k times its area factor gives: quarters are exact); in a box of one material the
+// family's k times the bar's area factor, which along a link's bars changes only at its first
+// and last (the body's faces across x): those two and one for the bars between.
 struct UnitLinks {
   RowLink links[kMaxRowLinks];
   double e[kMaxRowLinks][3];
   double k_first[kMaxRowLinks], k_inner[kMaxRowLinks], k_last[kMaxRowLinks];
   const double* kb;
+  const std::uint8_t* quarters;
   int count = 0;
-  UnitLinks(const Lattice& lat, const BarTable& table, const double* kb_, const NodeRow& row)
-      : kb(kb_), count(row_links(lat, row, links)) {
+  UnitLinks(const Lattice& lat, const BarTable& table, const double* kb_,
+            const std::uint8_t* quarters_, const NodeRow& row)
+      : kb(kb_), quarters(quarters_), count(row_links(lat, row, links)) {
     for (int l = 0; l < count; ++l) {
       const RowLink& L = links[l];
       const Vec3& r = L.r0;
@@ -56,6 +62,13 @@ struct UnitLinks {
       e[l][2] = r.z / len;
       if (kb || L.ihi <= L.ilo)
         continue;
+      const auto family = [&](index_t i) {
+        return lat.bar_address(static_cast<index_t>(L.bar_base + i)).family;
+      };
+      if (quarters) {
+        k_inner[l] = table.family(static_cast<int>(family(L.ilo))).k; // (the family's k)
+        continue;
+      }
       const auto k_of = [&](index_t i) {
         const BarAddress a = lat.bar_address(static_cast<index_t>(L.bar_base + i));
         return table.family(static_cast<int>(a.family)).k *
@@ -70,6 +83,8 @@ struct UnitLinks {
   double k(int l, index_t i) const {
     if (kb)
       return kb[static_cast<std::size_t>(links[l].bar_base + i)];
+    if (quarters)
+      return k_inner[l] * (quarters[static_cast<std::size_t>(links[l].bar_base + i)] * 0.25);
     return i == links[l].ilo ? k_first[l] : i + 1 == links[l].ihi ? k_last[l] : k_inner[l];
   }
 };
@@ -84,12 +99,17 @@ template <class F> void for_each_bar_of(index_t i, const UnitLinks& u, F&& f) {
   }
 }
 
+// How a link's bars have their stiffness: k[0] for all, k[i] per bar, or k[0] times a quarter
+// of quarters[i] (UnitLinks).
+enum class Stiffness { One, PerBar, Quarters };
+
 // What a link of a row reads at its other nodes (node other_base + i for the row's node i): x
 // by component, 1 / sqrt(m) and the held DOF (whether any is held in that row); its unit vector
-// and its bars' stiffness (k[i] per bar, or k[0] for all).
+// and its bars' stiffness (Stiffness).
 struct LinkArrays {
   double e[3];
   const double* k;
+  const std::uint8_t* quarters; // (Stiffness::Quarters)
   const double *ox, *oy, *oz, *om;
   const unsigned char* oh;
   bool holds;
@@ -99,7 +119,7 @@ struct LinkArrays {
 // x_other)) e, with p the row's M^-1/2 x by component (`len` apart). Holds: the other nodes'
 // held DOF count (M^-1/2 x is 0 there; x 1 where free, the same numbers), else they are read
 // as free.
-template <bool Holds, bool PerBar>
+template <bool Holds, Stiffness K>
 inline void add_bar(const LinkArrays& L, index_t i, const double* __restrict p, std::size_t len,
                     double& ax, double& ay, double& az) {
   double sx = L.ox[i] * L.om[i], sy = L.oy[i] * L.om[i], sz = L.oz[i] * L.om[i];
@@ -112,7 +132,10 @@ inline void add_bar(const LinkArrays& L, index_t i, const double* __restrict p, 
   proj += L.e[0] * (p[i] - sx);
   proj += L.e[1] * (p[len + i] - sy);
   proj += L.e[2] * (p[2 * len + i] - sz);
-  const double kp = (PerBar ? L.k[i] : L.k[0]) * proj;
+  const double kp = (K == Stiffness::PerBar     ? L.k[i]
+                     : K == Stiffness::Quarters ? L.k[0] * (L.quarters[i] * 0.25)
+                                                : L.k[0]) *
+                    proj;
   ax += kp * L.e[0];
   ay += kp * L.e[1];
   az += kp * L.e[2];
@@ -121,7 +144,7 @@ inline void add_bar(const LinkArrays& L, index_t i, const double* __restrict p, 
 // Every link's bars at the row's nodes [lo, hi), each node's terms in the order of the links,
 // into acc: eight nodes at a time, their sums in registers (one link after another would load
 // and store them at every link).
-template <bool Holds, bool PerBar>
+template <bool Holds, Stiffness K>
 void all_links(index_t lo, index_t hi, const LinkArrays* links, int count,
                const double* __restrict p, std::size_t len, double* __restrict acc) {
   constexpr index_t kLanes = 8;
@@ -139,6 +162,7 @@ void all_links(index_t lo, index_t hi, const LinkArrays* links, int count,
       const double* __restrict const oz = L.oz + i;
       const double* __restrict const om = L.om + i;
       const double* __restrict const k = L.k + i;
+      const std::uint8_t* __restrict const quarter = L.quarters + i;
       const unsigned char* __restrict const oh = L.oh + i;
       // (The other rows' values 8 lines ahead: more streams than the hardware follows.)
       __builtin_prefetch(ox + 64);
@@ -157,7 +181,10 @@ void all_links(index_t lo, index_t hi, const LinkArrays* links, int count,
         proj += e0 * (px[v] - sx);
         proj += e1 * (py[v] - sy);
         proj += e2 * (pz[v] - sz);
-        const double kp = (PerBar ? k[v] : k0) * proj;
+        const double kp = (K == Stiffness::PerBar     ? k[v]
+                           : K == Stiffness::Quarters ? k0 * (quarter[v] * 0.25)
+                                                      : k0) *
+                          proj;
         ax[v] += kp * e0;
         ay[v] += kp * e1;
         az[v] += kp * e2;
@@ -172,7 +199,7 @@ void all_links(index_t lo, index_t hi, const LinkArrays* links, int count,
   for (; i < hi; ++i) {
     double ax = 0.0, ay = 0.0, az = 0.0;
     for (int l = 0; l < count; ++l)
-      add_bar<Holds, PerBar>(links[l], i, p, len, ax, ay, az);
+      add_bar<Holds, K>(links[l], i, p, len, ax, ay, az);
     acc[i] = ax;
     acc[len + i] = ay;
     acc[2 * len + i] = az;
@@ -217,8 +244,9 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
                                std::span<const double> mass,
                                const std::vector<unsigned char>& held_given,
                                const StableStepParts* parts, const StableStepScratch* scratch) {
-  std::vector<double> kb_own;
-  const double* const kb = bar_stiffness(lat, table, kb_own);
+  std::vector<std::uint8_t> quarters_own;
+  const double* const kb = bar_stiffness(lat, table, quarters_own);
+  const std::uint8_t* const quarters = quarters_own.empty() ? nullptr : quarters_own.data();
   const std::size_t n = lat.num_nodes();
   // The rows of nodes this process owns (a row along x is never split between processes).
   const std::vector<NodeRow> all_rows = node_rows(lat);
@@ -308,7 +336,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
 #pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
     for (std::int64_t r = 0; r < nrows; ++r) {
       const NodeRow& row = rows[r];
-      const UnitLinks u(lat, table, kb, row);
+      const UnitLinks u(lat, table, kb, quarters, row);
       const std::size_t len = row.length, first = row.first;
       // The row's M^-1/2 x (p) and its nodes' sums (acc), by component.
       thread_local AlignedVector<double> buf;
@@ -333,6 +361,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
         holds = holds || other_holds;
         links[active++] = {{u.e[l][0], u.e[l][1], u.e[l][2]},
                            kb ? kb + L.bar_base : &u.k_inner[l],
+                           quarters ? quarters + L.bar_base : nullptr,
                            x.c[0] + o,
                            x.c[1] + o,
                            x.c[2] + o,
@@ -355,8 +384,8 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
             continue;
           const double k = u.k(l, i);
           at.k = &k;
-          at.holds ? add_bar<true, false>(at, i, p, len, ax, ay, az)
-                   : add_bar<false, false>(at, i, p, len, ax, ay, az);
+          at.holds ? add_bar<true, Stiffness::One>(at, i, p, len, ax, ay, az)
+                   : add_bar<false, Stiffness::One>(at, i, p, len, ax, ay, az);
         }
         acc[i] = ax;
         acc[len + i] = ay;
@@ -367,12 +396,19 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       for (index_t i = f1; i < row.length; ++i)
         end_node(i);
       // The nodes [f0, f1), every link at once (the sums held in registers).
+      const auto every_link = [&](auto holds_dof) {
+        constexpr bool H = decltype(holds_dof)::value;
+        if (kb)
+          all_links<H, Stiffness::PerBar>(f0, f1, links, active, p, len, acc);
+        else if (quarters)
+          all_links<H, Stiffness::Quarters>(f0, f1, links, active, p, len, acc);
+        else
+          all_links<H, Stiffness::One>(f0, f1, links, active, p, len, acc);
+      };
       if (holds)
-        kb ? all_links<true, true>(f0, f1, links, active, p, len, acc)
-           : all_links<true, false>(f0, f1, links, active, p, len, acc);
+        every_link(std::true_type{});
       else
-        kb ? all_links<false, true>(f0, f1, links, active, p, len, acc)
-           : all_links<false, false>(f0, f1, links, active, p, len, acc);
+        every_link(std::false_type{});
       for (int d = 0; d < 3; ++d)
         for (std::size_t i = 0; i < len; ++i)
           y.c[d][first + i] = acc[d * len + i] * rsm[first + i] * free_dof(first + i, d);
@@ -412,12 +448,13 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
 #pragma omp parallel for schedule(static) reduction(max : bound) if (3 * n > kParallelMinItems)
   for (std::int64_t r = 0; r < nrows; ++r) {
     const NodeRow& row = rows[r];
-    const UnitLinks u(lat, table, kb, row);
+    const UnitLinks u(lat, table, kb, quarters, row);
     // A box's row of one material whose own and linked inner nodes have one mass and no held
     // DOF: its nodes 3 to length - 4 take node 2's numbers (each of their links has the one
     // stiffness of its inner bars, UnitLinks::k_inner, and reaches inner nodes of its row), so
     // they are skipped; the bound is the same.
-    bool skip = !kb && row.length >= 7 && row_even[static_cast<std::size_t>(row_of(row.first))];
+    bool skip = !kb && !quarters && row.length >= 7 &&
+                row_even[static_cast<std::size_t>(row_of(row.first))];
     for (int l = 0; l < u.count && skip; ++l)
       skip = row_even[static_cast<std::size_t>(row_of(u.links[l].other_base + 2))] != 0;
     for (index_t i = 0; i < row.length; ++i) {
