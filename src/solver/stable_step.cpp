@@ -156,13 +156,15 @@ void all_links(index_t lo, index_t hi, const LinkArrays* links, int count,
     const double* __restrict const pz = p + 2 * len + i;
     for (int l = 0; l < count; ++l) {
       const LinkArrays& L = links[l];
-      const double e0 = L.e[0], e1 = L.e[1], e2 = L.e[2], k0 = L.k[0];
+      const double e0 = L.e[0], e1 = L.e[1], e2 = L.e[2];
+      const double k0 = K == Stiffness::PerBar ? 0.0 : L.k[0]; // (per bar: L.k[i] from ilo on)
       const double* __restrict const ox = L.ox + i;
       const double* __restrict const oy = L.oy + i;
       const double* __restrict const oz = L.oz + i;
       const double* __restrict const om = L.om + i;
-      const double* __restrict const k = L.k + i;
-      const std::uint8_t* __restrict const quarter = L.quarters + i;
+      const double* __restrict const k = K == Stiffness::PerBar ? L.k + i : nullptr;
+      const std::uint8_t* __restrict const quarter =
+          K == Stiffness::Quarters ? L.quarters + i : nullptr;
       const unsigned char* __restrict const oh = L.oh + i;
       // (The other rows' values 8 lines ahead: more streams than the hardware follows.)
       __builtin_prefetch(ox + 64);
