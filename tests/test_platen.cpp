@@ -266,8 +266,8 @@ TEST(Platen, FrictionlessPlatensSplitAPrismWhereFrictionalOnesHoldIt) {
   // along the load and, nothing holding the split columns together, the load falls to nothing.
   // 10 %: the lattice's free faces (its uniaxial modulus on a finite section is below E) and
   // the bars' softening before the peak. With friction 0.3 the platens hold the columns' ends:
-  // the bars never fail in compression, and the load still rises at the end, past twice that
-  // (the paper's law has no compressive or shear failure; docs/validation/compression.md).
+  // the bars never fail in compression, and the load is still at its peak at the end, past twice
+  // that (the paper's law has no compressive or shear failure; docs/validation/compression.md).
   const auto curve = [](const char* friction) {
     std::string text = block(8, 8, 16, std::string(R"(
 [[platen]]
@@ -312,7 +312,10 @@ platen = "upper"
   const double peak = *std::max_element(free.begin(), free.end());
   EXPECT_NEAR(peak, expected, 0.1 * expected);
   EXPECT_LT(free.back(), 0.05 * peak);
-  EXPECT_EQ(*std::max_element(held.begin(), held.end()), held.back());
+  // Held: the load carries its peak to the end (a split prism keeps under 5 % of its own), to
+  // the wobble of the bars that still break inside (0.04 % at the last sample, 1,755 of them
+  // broken by then).
+  EXPECT_GT(held.back(), 0.99 * *std::max_element(held.begin(), held.end()));
   EXPECT_GT(held.back(), 1.5 * expected);
 }
 

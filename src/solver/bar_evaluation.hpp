@@ -56,11 +56,12 @@ inline std::pair<index_t, index_t> stored_bars(const SimulationCore& core, std::
 }
 
 // A row is "damaged" once any of its bars is not pristine (or is pre-cracked); rows of pristine
-// bars skip reading the state.
+// bars skip reading the state. Its damaged span: from its first such bar to its last.
 template <class Law> void mark_damaged_rows(SimulationCore& core) {
   constexpr std::size_t kStates = Law::kStateArrays.size();
   const std::size_t rows = core.layout.bar_rows.size();
   core.row_damaged.assign(rows, 0);
+  core.damaged_span.assign(rows, {0, 0});
   core.row_ratio.assign(rows, kUnknown);
   core.row_dissipated.assign(rows, 0.0);
   core.row_fatigue.assign(rows, 0.0);
@@ -76,8 +77,10 @@ template <class Law> void mark_damaged_rows(SimulationCore& core) {
     for (index_t i = p0; i < p1; ++i) {
       const Law law =
           per_bar ? Law::template at<true>(constants, i) : Law::template at<false>(constants, i);
-      if (!law.pristine(Law::read(states.data(), i)))
+      if (!law.pristine(Law::read(states.data(), i))) {
         core.row_damaged[r] = 1;
+        core.widen_damaged(static_cast<std::size_t>(r), i);
+      }
     }
   }
 }

@@ -25,7 +25,8 @@ struct RowView {
 // is pristine (its state is not read). With `Energy`, also the sum over the row of each bar's
 // elastic energy into *energy, from its force over length times w, w = 1 for inner bars and
 // `end_scale` for the first and last (the factor the caller applies to their forces
-// afterwards). `Coded`: a shaped body's row, each bar's force and energy times its area factor
+// afterwards; a part of a row passes which of its ends are the row's: first_end, last_end).
+// `Coded`: a shaped body's row, each bar's force and energy times its area factor
 // code / 4 (StepLayout::bar_code), its absent bars (code 0) with s = 0 and no state change.
 // (Inlined where it is called, as intact_row_kernel.)
 template <class Law, bool PerBar, bool PerBarK, bool Intact, bool Energy = false,
@@ -34,7 +35,8 @@ template <class Law, bool PerBar, bool PerBarK, bool Intact, bool Energy = false
 bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
                const std::array<const double*, Law::kStateArrays.size()>& states, Vec3 d0,
                double l0, double k_row, const double* __restrict k_bar, double end_scale = 1.0,
-               double* energy = nullptr, const std::uint8_t* __restrict code = nullptr) {
+               double* energy = nullptr, const std::uint8_t* __restrict code = nullptr,
+               bool first_end = true, bool last_end = true) {
   const double inv_l0 = 1.0 / l0;
   int past = 0; // an int, not a bool: GCC vectorises only arithmetic reductions
   double sum = 0.0;
@@ -50,6 +52,7 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
   const typename Law::Row row = constants;
   const std::array<const double*, Law::kStateArrays.size()> st = states;
   const auto nn = static_cast<std::int64_t>(n);
+  const std::int64_t e0 = first_end ? 0 : -1, e1 = last_end ? nn - 1 : -1;
   // bar(i): 1 if bar i's state changes, and with Energy its term of the sum; the loops name
   // only the reductions they have (GCC 12 vectorises neither with one that stays unused).
   struct Term {
@@ -62,7 +65,7 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
     const Law law = Law::template at<PerBar>(row, i);
     const typename Law::State s = Intact ? law.initial() : Law::read(st.data(), i);
     double si = law.force_over_length(PerBarK ? k_bar[i] : k_row, g, s);
-    double w = i == 0 || i + 1 == nn ? end_scale : 1.0;
+    double w = i == e0 || i == e1 ? end_scale : 1.0;
     int present = 1;
     if constexpr (Coded) {
       // (Without a branch, which would keep GCC from vectorising the loop: an absent bar's s is
@@ -115,11 +118,14 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
 // `code`: a shaped body's row (StepLayout::bar_code): each bar's force and energy times its
 // area factor code / 4 (as the node kernel's times_quarters has it, the same bits), its absent
 // bars with s = 0, neither tested nor measured.
+// [skip_lo, skip_hi): bars that another kernel computes afterwards (a damaged span): neither
+// tested, measured nor summed (their forces may be written, to be overwritten).
 template <bool Energy>
 [[gnu::always_inline]] inline bool
 intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_lim,
                   double end_scale, double* energy, double& l2_max,
-                  const std::uint8_t* __restrict code = nullptr) {
+                  const std::uint8_t* __restrict code = nullptr, index_t skip_lo = 0,
+                  index_t skip_hi = 0) {
   // Slightly below the exact threshold, so that a bar at e_lim to within rounding is handed to
   // the general kernel, whose strain test is the reference.
   const double lp2 = l0 * l0 * (1.0 + e_lim) * (1.0 + e_lim) * (1.0 - 1e-12);
@@ -142,25 +148,31 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
     const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
     const __m512d y = inv_sqrt(l2);
     __m512d s = _mm512_fnmadd_pd(vkl0, y, vk);
+    // The lanes tested, measured and summed.
+    __mmask8 keep = m;
+    if (i < skip_hi && i + 8 > skip_lo)
+      keep = static_cast<__mmask8>(keep & ~lanes_in(i, skip_lo, skip_hi));
     if (code) {
       __mmask8 present = 0;
       const __m512d f = code_factors(code + i, Tail ? n - i : 8, present);
       s = _mm512_maskz_mul_pd(present, s, f);
       _mm512_mask_storeu_pd(r.s + i, m, s);
-      past |= _mm512_mask_cmp_pd_mask(m & present, l2, vlp2, _CMP_GT_OQ);
-      top = _mm512_mask_max_pd(top, m & present, top, l2);
+      past |= _mm512_mask_cmp_pd_mask(keep & present, l2, vlp2, _CMP_GT_OQ);
+      top = _mm512_mask_max_pd(top, keep & present, top, l2);
       if constexpr (Energy)
-        acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, m & present, f);
+        acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, keep & present, f);
       return;
     }
-    if constexpr (Tail) {
+    if constexpr (Tail)
       _mm512_mask_storeu_pd(r.s + i, m, s);
-      past |= _mm512_mask_cmp_pd_mask(m, l2, vlp2, _CMP_GT_OQ);
-      top = _mm512_mask_max_pd(top, m, top, l2);
-    } else {
+    else
       _mm512_storeu_pd(r.s + i, s);
+    if (keep == 0xFF) {
       past |= _mm512_cmp_pd_mask(l2, vlp2, _CMP_GT_OQ);
       top = _mm512_max_pd(top, l2);
+    } else {
+      past |= _mm512_mask_cmp_pd_mask(keep, l2, vlp2, _CMP_GT_OQ);
+      top = _mm512_mask_max_pd(top, keep, top, l2);
     }
     if constexpr (Energy) {
       // Zero beyond the row's end, weighted at its ends.
@@ -169,7 +181,7 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
         ends |= 1;
       if (n - 1 - i < 8)
         ends |= static_cast<__mmask8>(1u << (n - 1 - i));
-      acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, m, ends, end_scale);
+      acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, keep, ends, end_scale);
     }
   };
   index_t i = 0;
@@ -198,11 +210,12 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
     const bool present = code == nullptr || code[i] != 0;
     const double f = code ? code[i] * 0.25 : 1.0;
     r.s[i] = present ? (k - k * l0 / l) * f : 0.0;
-    Term t{present && l2 > lp2 ? 1 : 0, 0.0};
+    const bool kept = present && (i < skip_lo || i >= skip_hi);
+    Term t{kept && l2 > lp2 ? 1 : 0, 0.0};
     if constexpr (Energy) { // as above
       const double dl =
           (ux * (ux + 2 * d0.x) + uy * (uy + 2 * d0.y) + uz * (uz + 2 * d0.z)) / (l + l0);
-      t.energy = present ? (code ? f : i == 0 || i + 1 == n ? end_scale : 1.0) * dl * dl : 0.0;
+      t.energy = kept ? (code ? f : i == 0 || i + 1 == n ? end_scale : 1.0) * dl * dl : 0.0;
     }
     return t;
   };
@@ -231,22 +244,37 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
 // the row knows the largest (l_n / l_p)^2 of its bars (row_ratio, measured by whichever pass
 // computed them at step n) and its node rows' largest motion in step n (node_row_motion), so
 // if sqrt(ratio) + (motion_a + motion_b) / l_p stays below 1 no bar of the row can pass its
-// elastic limit, and the pristine spring alone gives its force. The margin of 1e-9 covers the
-// rounding of those sums (a few units of 1e-16) and keeps the bars clear of the intact
-// kernel's own threshold, l_p^2 (1 - 1e-12). An unknown ratio or motion is infinite, which
-// fails the test.
+// elastic limit, and the pristine spring alone gives its force. (Of a damaged row, the same
+// of its bars outside its damaged span, which are pristine: the ratio is theirs.) The margin
+// of 1e-9 covers the rounding of those sums (a few units of 1e-16) and keeps the bars clear of
+// the intact kernel's own threshold, l_p^2 (1 - 1e-12). An unknown ratio or motion is
+// infinite, which fails the test.
 inline bool bar_row_stays_intact(const SimulationCore& core, std::size_t r) {
   constexpr double kMargin = 1.0 - 1e-9;
   const auto [a, b] = core.layout.bar_row_nodes[r];
   // sqrt(ratio) + m <= margin, in squares (m <= margin first, which also fails on a NaN).
   const double m = (core.node_row_motion[a] + core.node_row_motion[b]) * core.layout.row_inv_lp[r];
-  return !core.row_damaged[r] && !core.layout.bar_rows[r].own_stiffness() && m <= kMargin &&
+  return !core.layout.bar_rows[r].own_stiffness() && m <= kMargin &&
          core.row_ratio[r] <= (kMargin - m) * (kMargin - m);
+}
+
+// Which way a bar row's bars go this step (SimulationCore::row_fast): a pristine row's all at
+// the nodes if bar_row_stays_intact; a damaged row's outside its damaged span at the nodes if
+// that holds for them (row_ratio is theirs) and there are some, its span in the bar pass; else
+// the bar pass.
+inline std::uint8_t bar_row_way(const SimulationCore& core, std::size_t r) {
+  if (!core.fast_path || !bar_row_stays_intact(core, r))
+    return kRowByPass;
+  if (!core.row_damaged[r])
+    return kRowFast;
+  const BarRow& row = core.layout.bar_rows[r];
+  const auto [lo, hi] = core.damaged_span[r];
+  return lo > row.p0 || hi < row.p1 ? kRowFastAround : kRowByPass;
 }
 
 // The bar rows of a line into its plane's force buffer `s_plane`; with `energies`, the elastic
 // energy of each row into energy_rows_u. Rows whose bars take the intact fast path this step
-// (row_fast) are left to the node pass.
+// (row_fast) are left to the node pass, but for the damaged span of a row that has one.
 template <class Law>
 void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool energies) {
   constexpr std::size_t kStates = Law::kStateArrays.size();
@@ -258,12 +286,12 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
   std::vector<Event>& events = core.thread_events[static_cast<std::size_t>(omp_get_thread_num())];
   bool all_fast = true;
   for (std::size_t r = begin; r < end; ++r) {
-    core.row_fast[r] = core.fast_path && bar_row_stays_intact(core, r);
-    all_fast = all_fast && core.row_fast[r];
+    core.row_fast[r] = bar_row_way(core, r);
+    all_fast = all_fast && core.row_fast[r] == kRowFast;
   }
   core.line_fast[line] = all_fast;
   for (std::size_t r = begin; r < end; ++r) {
-    if (core.row_fast[r])
+    if (core.row_fast[r] == kRowFast)
       continue;
     const BarRow& row = core.layout.bar_rows[r];
     const FamilyInfo& fi = core.lat.family(row.family);
@@ -309,54 +337,102 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     const bool own = row.own_stiffness();
     const double k = row.stiffness, scale = own ? 1.0 : row.end_factor / row.factor;
     // The general kernel, with per-bar constants (P) or the family's, and per-bar stiffness
-    // (K) or k.
-    const auto general = [&](auto per_bar_c, auto per_bar_k_c, auto intact_c) {
+    // (K) or k, on the row's bars [o, o + count).
+    const auto general = [&](auto per_bar_c, auto per_bar_k_c, auto intact_c, index_t o,
+                             index_t count) {
       constexpr bool P = decltype(per_bar_c)::value, K = decltype(per_bar_k_c)::value,
                      I = decltype(intact_c)::value;
-      const double* kr = K ? kb + b0 : nullptr;
+      const auto at = static_cast<std::size_t>(o);
+      const double* kr = K ? kb + b0 + o : nullptr;
+      const RowView w{v.uax + at, v.uay + at, v.uaz + at, v.ubx + at,
+                      v.uby + at, v.ubz + at, v.s + at};
+      const typename Law::Row c = o == 0 ? constants : Law::row(core.table, row.family, b0 + o);
+      std::array<const double*, kStates> st = read_states;
+      for (const double*& p : st)
+        p += at;
+      const std::uint8_t* cd = code ? code + at : nullptr;
+      const bool first_end = o == 0, last_end = o + count == n;
       if (!P && code)
-        return energies
-                   ? bar_row_kernel<Law, P, K, I, true, true>(n, v, constants, read_states, fi.d0,
-                                                              fi.l0, k, kr, scale, &law_sum, code)
-                   : bar_row_kernel<Law, P, K, I, false, true>(n, v, constants, read_states, fi.d0,
-                                                               fi.l0, k, kr, scale, nullptr, code);
+        return energies ? bar_row_kernel<Law, P, K, I, true, true>(count, w, c, st, fi.d0, fi.l0, k,
+                                                                   kr, scale, &law_sum, cd,
+                                                                   first_end, last_end)
+                        : bar_row_kernel<Law, P, K, I, false, true>(count, w, c, st, fi.d0, fi.l0,
+                                                                    k, kr, scale, nullptr, cd);
       return energies
-                 ? bar_row_kernel<Law, P, K, I, true>(n, v, constants, read_states, fi.d0, fi.l0, k,
-                                                      kr, scale, &law_sum)
-                 : bar_row_kernel<Law, P, K, I>(n, v, constants, read_states, fi.d0, fi.l0, k, kr);
+                 ? bar_row_kernel<Law, P, K, I, true>(count, w, c, st, fi.d0, fi.l0, k, kr, scale,
+                                                      &law_sum, nullptr, first_end, last_end)
+                 : bar_row_kernel<Law, P, K, I>(count, w, c, st, fi.d0, fi.l0, k, kr);
     };
     using yes = std::true_type;
     using no = std::false_type;
-    bool by_law = true;
+    // The bars the slow path looks at: those the general kernel took.
+    index_t slow_lo = 0, slow_hi = n;
     if (own) {
-      past = intact ? general(yes{}, yes{}, yes{}) : general(yes{}, yes{}, no{});
+      past = intact ? general(yes{}, yes{}, yes{}, 0, n) : general(yes{}, yes{}, no{}, 0, n);
+      if (energies)
+        core.energy_rows_u[r] = law_sum;
     } else {
-      double l2_max = kUnknown;
-      const double e_lim = row.elastic_limit;
-      past = intact && (energies ? intact_row_kernel<true>(n, v, fi.d0, fi.l0, k, e_lim, scale,
-                                                           &intact_sum, l2_max, code)
-                                 : intact_row_kernel<false>(n, v, fi.d0, fi.l0, k, e_lim, 1.0,
-                                                            nullptr, l2_max, code));
-      core.row_ratio[r] = l2_max * (core.layout.row_inv_lp[r] * core.layout.row_inv_lp[r]);
-      by_law = !intact || past;
-      if (by_law)
-        past = per_bar ? general(yes{}, no{}, no{}) : general(no{}, no{}, no{});
-      if (row.end_factor != row.factor) {
-        v.s[0] *= scale;
-        v.s[n - 1] *= scale;
+      // By the law (its state read), with per-bar constants or the family's.
+      const auto by_law = [&](index_t o, index_t count) {
+        return per_bar ? general(yes{}, no{}, no{}, o, count) : general(no{}, no{}, no{}, o, count);
+      };
+      // The row's damaged span among its bars [0, n) here (empty in a pristine row): the
+      // general kernel takes it, the intact kernels the bars outside it.
+      const auto [d_lo, d_hi] = core.damaged_span[r];
+      const index_t lo = intact || d_lo < p0 ? 0 : d_lo - p0,
+                    hi = intact ? 0 : std::min<index_t>(d_hi - p0, n);
+      const bool ends = row.end_factor != row.factor;
+      if (core.row_fast[r] == kRowFastAround) {
+        // The bars outside the span take the node pass this step (bar_row_stays_intact).
+        past = by_law(lo, hi - lo);
+        slow_lo = lo;
+        slow_hi = hi;
+        if (ends && lo == 0)
+          v.s[0] *= scale;
+        if (ends && hi == n)
+          v.s[n - 1] *= scale;
+        if (energies)
+          core.energy_rows_u[r] = law_sum; // (the node pass adds the others')
+      } else {
+        double l2_max = kUnknown;
+        const double e_lim = row.elastic_limit;
+        // Some bar outside the span may be past its elastic limit (or none is outside it): the
+        // whole row by the law.
+        const bool outside = intact || lo > 0 || hi < n;
+        const bool any_past =
+            !outside || (energies ? intact_row_kernel<true>(n, v, fi.d0, fi.l0, k, e_lim, scale,
+                                                            &intact_sum, l2_max, code, lo, hi)
+                                  : intact_row_kernel<false>(n, v, fi.d0, fi.l0, k, e_lim, 1.0,
+                                                             nullptr, l2_max, code, lo, hi));
+        core.row_ratio[r] = l2_max * (core.layout.row_inv_lp[r] * core.layout.row_inv_lp[r]);
+        if (any_past) {
+          past = by_law(0, n);
+        } else if (intact) {
+          past = false;
+          slow_hi = 0;
+        } else {
+          past = by_law(lo, hi - lo);
+          slow_lo = lo;
+          slow_hi = hi;
+        }
+        if (ends) {
+          v.s[0] *= scale;
+          v.s[n - 1] *= scale;
+        }
+        // U = k (l - l0)^2 / 2 of the intact kernel's bars (area factors in w), and the law's.
+        if (energies)
+          core.energy_rows_u[r] = any_past ? law_sum
+                                  : intact ? 0.5 * k * intact_sum
+                                           : law_sum + 0.5 * k * intact_sum;
       }
-      if (energies && !by_law)
-        core.energy_rows_u[r] = 0.5 * k * intact_sum; // U = k (l - l0)^2 / 2, area factors in w
     }
-    if (energies && by_law)
-      core.energy_rows_u[r] = law_sum;
     if (!past)
       continue;
     // Slow path: some bar's state changes. Its stretch again, the law's update and events. The
     // force the kernel gave already holds for the new state (the law's contract: the update
     // changes no force at the strain that caused it).
     const double inv_l0 = 1.0 / fi.l0;
-    for (index_t i = 0; i < n; ++i) {
+    for (index_t i = slow_lo; i < slow_hi; ++i) {
       if (code && code[i] == 0)
         continue; // an absent bar never changes
       const Stretch g = stretch(fi.d0.x + (v.ubx[i] - v.uax[i]), fi.d0.y + (v.uby[i] - v.uay[i]),
@@ -368,8 +444,10 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
         continue;
       law.update(g.e, s, [&](BarState to) { events.push_back({b0 + i, to, step}); });
       Law::write(states.data(), i, s);
-      if (!law.pristine(s))
+      if (!law.pristine(s)) {
         core.row_damaged[r] = 1;
+        core.widen_damaged(r, p0 + i);
+      }
       core.row_history_changed[r] = 1;
     }
   }

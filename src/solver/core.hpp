@@ -10,6 +10,8 @@
 #include "solver/step_layout.hpp"
 #include "util/aligned.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -18,6 +20,9 @@ namespace ldem {
 
 // A strain ratio or a motion not yet measured: the intact fast path waits for it.
 inline constexpr double kUnknown = std::numeric_limits<double>::infinity();
+// SimulationCore::row_fast: a bar row's bars in the bar pass, all of them at the nodes, or those
+// outside its damaged span at the nodes and the span in the bar pass.
+inline constexpr std::uint8_t kRowByPass = 0, kRowFast = 1, kRowFastAround = 2;
 
 // Whether the node kernel is the AVX-512 one, which takes fast links and can also move the
 // nodes (node_row_forces).
@@ -121,14 +126,25 @@ struct SimulationCore {
   // bars' force over current length s = F / l lives only in per-thread plane buffers during a
   // step (see advance_rows).
   std::vector<UnsetVector<double>> states;
-  // Per bar row: some bar is not pristine (the law's pristine()): the row takes the general
-  // kernel.
+  // Per bar row: some bar is not pristine (the law's pristine()): its damaged span (below)
+  // takes the general kernel.
   std::vector<std::uint8_t> row_damaged;
+  // Per bar row, the bars [lo, hi) from its first to its last bar that is not pristine ({0, 0}
+  // in a pristine row): the general kernel takes those, the intact kernels the row's others
+  // (bar_rows). A bar never becomes pristine again, so the span only widens, and is the same
+  // whether it grew step by step or was found in the states of a resumed run.
+  std::vector<std::array<index_t, 2>> damaged_span;
+  void widen_damaged(std::size_t r, index_t i) {
+    std::array<index_t, 2>& d = damaged_span[r];
+    d = d[0] == d[1] ? std::array<index_t, 2>{i, i + 1}
+                     : std::array<index_t, 2>{std::min(d[0], i), std::max(d[1], i + 1)};
+  }
   // The intact fast path (SolverOptions::intact_at_nodes; bar_row_stays_intact). Per bar row:
-  // whether its bars take it in this step and the largest (l / l_p)^2 of its bars when last
-  // evaluated (infinite when not known). Per line: whether all its bar rows take the fast path.
-  // Per node row: the largest |u_{n+1} - u_n| of its nodes in the last step (infinite when not
-  // known).
+  // whether its bars take it in this step (kRowFast: all of them; kRowFastAround: those outside
+  // its damaged span, whose forces the bar pass computes) and the largest (l / l_p)^2 of its
+  // bars outside that span when last evaluated (infinite when not known). Per line: whether all its
+  // bar rows take the fast path. Per node row: the largest |u_{n+1} - u_n| of its nodes in the last
+  // step (infinite when not known).
   bool fast_path = false;
   std::vector<std::uint8_t> row_fast, line_fast;
   std::vector<double> row_ratio;

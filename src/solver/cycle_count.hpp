@@ -104,6 +104,7 @@ template <class Law> void count_cycles(SimulationCore& core) {
             before[i] = out.dissipated;
             Law::write(states.data(), i, s);
             events.push_back({b0 + i, BarState::Broken, step});
+            core.widen_damaged(r, i);
             broke = true;
           };
           if (per_bar)

@@ -6,6 +6,7 @@
 #include "lattice/lattice.hpp"
 
 #if defined(__AVX512F__)
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <immintrin.h>
@@ -61,6 +62,13 @@ inline __m512d add_intact_energy(__m512d acc, __m512d ux, __m512d uy, __m512d uz
                                  __m512d l2, __m512d y, double l0, __mmask8 m, __mmask8 ends,
                                  double end_scale) {
   return add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, m, end_weights(ends, end_scale));
+}
+
+// The lanes of a vector of 8 from index i on whose indices lie in [lo, hi).
+inline __mmask8 lanes_in(std::int64_t i, std::int64_t lo, std::int64_t hi) {
+  const std::int64_t a = std::clamp<std::int64_t>(lo - i, 0, 8),
+                     b = std::clamp<std::int64_t>(hi - i, 0, 8);
+  return static_cast<__mmask8>(((1u << b) - 1u) & ~((1u << a) - 1u));
 }
 
 // A shaped body's area factors of a vector of 8 bars (StepLayout::bar_code): x times 1/4, 1/2

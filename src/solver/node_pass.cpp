@@ -26,10 +26,12 @@ struct NodeRowArgs {
   double alpha_dt; // alpha dt of the damping
 };
 
-// The links of a row that mix the two ways: per link, whether it is fast and, if not, where the
-// bar pass put its bars' forces.
+// The links of a row that mix the two ways: per link, whether it is fast, where the bar pass put
+// its bars' forces, and of a fast link the nodes [lo, hi) whose bars the bar pass computed all
+// the same (its bar row's damaged span; kRowFastAround).
 struct MixedLinks {
   const double* s[kMaxRowLinks];
+  std::int64_t lo[kMaxRowLinks], hi[kMaxRowLinks];
   bool fast[kMaxRowLinks];
 };
 
@@ -75,6 +77,12 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
                   dz = _mm512_add_pd(_mm512_set1_pd(L.rz), uz);
     __m512d s;
     if (AllFast || mixed->fast[l]) {
+      // The lanes whose bars lie in their row's damaged span: s from the bar pass, not measured
+      // nor summed here.
+      __mmask8 span = 0;
+      if constexpr (!AllFast)
+        if (i < mixed->hi[l] && i + 8 > mixed->lo[l])
+          span = lanes_in(i, mixed->lo[l], mixed->hi[l]);
       // As intact_row_kernel: s = k - k l0 / l.
       const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
       const __m512d y = inv_sqrt(l2);
@@ -87,8 +95,8 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
           __m512d w = end_weights(Edge ? lanes[l].first | lanes[l].last : 0, L.scale);
           if constexpr (Edge && Shaped)
             w = times_quarters(w, lanes[l].q1, lanes[l].q2, lanes[l].q3);
-          energy[l] =
-              add_intact_energy(energy[l], ux, uy, uz, Vec3{L.rx, L.ry, L.rz}, l2, y, L.l0, m, w);
+          energy[l] = add_intact_energy(energy[l], ux, uy, uz, Vec3{L.rx, L.ry, L.rz}, l2, y, L.l0,
+                                        static_cast<__mmask8>(m & ~span), w);
         }
       if constexpr (Edge) {
         // The bar row's first and last bars (node i = ilo and ihi - 1) carry their own factor.
@@ -99,10 +107,18 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
           s = times_quarters(s, lanes[l].q1, lanes[l].q2, lanes[l].q3);
         s = _mm512_maskz_mov_pd(m, s);
         if (L.first_node)
-          top = _mm512_mask_max_pd(top, m, top, _mm512_mul_pd(l2, _mm512_set1_pd(L.inv_lp2)));
+          top = _mm512_mask_max_pd(top, static_cast<__mmask8>(m & ~span), top,
+                                   _mm512_mul_pd(l2, _mm512_set1_pd(L.inv_lp2)));
       } else if (L.first_node) {
-        top = _mm512_max_pd(top, _mm512_mul_pd(l2, _mm512_set1_pd(L.inv_lp2)));
+        if (span)
+          top = _mm512_mask_max_pd(top, static_cast<__mmask8>(~span), top,
+                                   _mm512_mul_pd(l2, _mm512_set1_pd(L.inv_lp2)));
+        else
+          top = _mm512_max_pd(top, _mm512_mul_pd(l2, _mm512_set1_pd(L.inv_lp2)));
       }
+      if constexpr (!AllFast)
+        if (span)
+          s = _mm512_mask_loadu_pd(s, static_cast<__mmask8>(span & m), mixed->s[l] + i);
     } else {
       s = load(mixed->s[l] + i);
     }
@@ -521,13 +537,28 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
       if (!all_fast && nl >= 7 && core.fast_path) {
         all_fast = true;
         for (int l = 0; l < nl; ++l)
-          all_fast = all_fast && core.row_fast[ref[l].bar_row] != 0;
+          all_fast = all_fast && core.row_fast[ref[l].bar_row] == kRowFast;
       }
       MixedLinks mixed;
       if (!all_fast)
         for (int l = 0; l < kMaxRowLinks; ++l) {
-          mixed.fast[l] = core.fast_path && l < nl && core.row_fast[ref[l].bar_row] != 0;
+          const std::uint8_t way =
+              core.fast_path && l < nl ? core.row_fast[ref[l].bar_row] : kRowByPass;
+          mixed.fast[l] = way != kRowByPass;
           mixed.s[l] = (lc[l].dk == 0 ? s_plane : s_below) + ref[l].plane_base;
+          mixed.lo[l] = mixed.hi[l] = 0;
+          if (way == kRowFastAround) {
+            // The span's bars [a, b) of the bar row are the nodes [a - d, b - d) here: node i's
+            // bar is bar i + d of its row (plane_base: where node 0's bar's force would be).
+            const BarRow& br = core.layout.bar_rows[ref[l].bar_row];
+            const FamilyInfo& fi = core.lat.family(br.family);
+            const std::int64_t d =
+                ref[l].plane_base -
+                static_cast<std::int64_t>(fi.plane_offset + std::size_t{fi.plane_stride} * br.j);
+            const auto [a, b] = core.damaged_span[ref[l].bar_row];
+            mixed.lo[l] = a - d;
+            mixed.hi[l] = b - d;
+          }
         }
       const int padded = std::max(nl, 7);
       double* __restrict wx = core.wx.data() + n0;
@@ -610,10 +641,16 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
         top = all_fast ? by_count(yes{}, no{}, no{}) : by_count(no{}, no{}, no{});
       // The fast bar rows whose first nodes are this row's: their elastic energy, U = k (l -
       // l0)^2 / 2 with the area factors in the weights (as bar_rows has it for the others).
+      // (A row with a damaged span adds them to its span's, which the bar pass gave.)
       if constexpr (Report && kVectorKernel)
-        for (int l = 0; l < nl; ++l)
-          if (lc[l].first_node && core.row_fast[ref[l].bar_row])
-            core.energy_rows_u[ref[l].bar_row] = 0.5 * lc[l].k * energy[l];
+        for (int l = 0; l < nl; ++l) {
+          const std::size_t b = ref[l].bar_row;
+          if (lc[l].first_node && core.row_fast[b] != kRowByPass) {
+            const double u = 0.5 * lc[l].k * energy[l];
+            core.energy_rows_u[b] =
+                core.row_fast[b] == kRowFastAround ? core.energy_rows_u[b] + u : u;
+          }
+        }
       top_row[row.centre] = top;
       if (in_kernel) {
         core.node_row_motion[r] = std::sqrt(motion);
@@ -678,7 +715,7 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
   // own largest length is.
   for (std::size_t r = core.layout.lines[line].bar_begin;
        core.fast_path && r < core.layout.lines[line].bar_end; ++r)
-    if (core.row_fast[r])
+    if (core.row_fast[r] != kRowByPass)
       core.row_ratio[r] = top_row[core.layout.row_first_centre[r]];
 }
 #pragma GCC diagnostic pop

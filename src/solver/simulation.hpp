@@ -350,10 +350,12 @@ public:
   // num_nodes() if none.
   index_t first_node_beyond(double limit) const;
 
-  // Bar rows in all, and those whose bars took the intact fast path in the last step
-  // (SolverOptions::intact_at_nodes).
+  // Bar rows in all, those whose bars took the intact fast path in the last step
+  // (SolverOptions::intact_at_nodes), and the damaged rows whose bars outside their damaged
+  // span took it.
   std::size_t bar_row_count() const;
   std::size_t intact_fast_rows() const;
+  std::size_t fast_rows_around_damage() const;
   // The fast path's bound on how far `node` moved in the last step: the largest |u_{n+1} - u_n|
   // over its node row, infinite when not known (0 when the fast path is off).
   double motion_bound(index_t node) const;

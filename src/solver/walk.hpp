@@ -11,14 +11,14 @@
 namespace ldem {
 
 // The bar forces of line l from a plane buffer into a packed store of one line (Pack), or back.
-// Rows whose bars take the fast path this step have no forces in the buffers to move.
+// Rows whose bars all take the fast path this step have no forces in the buffers to move.
 template <bool Pack>
 void move_bar_line(const SimulationCore& core, std::size_t l, double* plane, double* packed) {
   for (std::size_t r = core.layout.lines[l].bar_begin; r < core.layout.lines[l].bar_end; ++r) {
     const FamilyInfo& fi = core.lat.family(core.layout.bar_rows[r].family);
     double* row =
         plane + fi.plane_offset + std::size_t{fi.plane_stride} * core.layout.bar_rows[r].j;
-    if (!core.row_fast[r]) {
+    if (core.row_fast[r] != kRowFast) {
       if constexpr (Pack)
         std::copy(row, row + fi.ni, packed);
       else
