@@ -60,7 +60,6 @@ inline std::pair<index_t, index_t> stored_bars(const SimulationCore& core, std::
 template <class Law> void mark_damaged_rows(SimulationCore& core) {
   constexpr std::size_t kStates = Law::kStateArrays.size();
   const std::size_t rows = core.layout.bar_rows.size();
-  core.row_damaged.assign(rows, 0);
   core.damaged_span.assign(rows, {0, 0});
   core.row_ratio.assign(rows, kUnknown);
   core.row_dissipated.assign(rows, 0.0);
@@ -77,10 +76,8 @@ template <class Law> void mark_damaged_rows(SimulationCore& core) {
     for (index_t i = p0; i < p1; ++i) {
       const Law law =
           per_bar ? Law::template at<true>(constants, i) : Law::template at<false>(constants, i);
-      if (!law.pristine(Law::read(states.data(), i))) {
-        core.row_damaged[r] = 1;
+      if (!law.pristine(Law::read(states.data(), i)))
         core.widen_damaged(static_cast<std::size_t>(r), i);
-      }
     }
   }
 }
@@ -258,7 +255,7 @@ template <class Law> Simulation::BarEnergies report_bar_energies(SimulationCore&
   for_each_row_by_law(
       core,
       [&](std::size_t r) {
-        return (core.row_damaged[r] || per_bar) && core.row_history_changed[r];
+        return (core.row_damaged(r) || per_bar) && core.row_history_changed[r];
       },
       [&](std::size_t r) {
         const Simulation::BarEnergies e = law_row_energies<Law>(core, r, false);
@@ -269,8 +266,8 @@ template <class Law> Simulation::BarEnergies report_bar_energies(SimulationCore&
   Simulation::BarEnergies out;
   // Row order: the same for any thread count.
   for (std::size_t r = 0; r < core.layout.bar_rows.size(); ++r) {
-    core.energy_rows_d[r] = core.row_damaged[r] || per_bar ? core.row_dissipated[r] : 0.0;
-    core.energy_rows_f[r] = core.row_damaged[r] || per_bar ? core.row_fatigue[r] : 0.0;
+    core.energy_rows_d[r] = core.row_damaged(r) || per_bar ? core.row_dissipated[r] : 0.0;
+    core.energy_rows_f[r] = core.row_damaged(r) || per_bar ? core.row_fatigue[r] : 0.0;
     out.elastic += core.energy_rows_u[r];
     out.damage += core.energy_rows_d[r];
     out.fatigue += core.energy_rows_f[r];
@@ -313,7 +310,7 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
   core.snapshot_by_law.assign(core.layout.bar_rows.size(), 0);
 #pragma omp parallel for schedule(static) if (nb > kParallelMinItems)
   for (std::size_t r = 0; r < core.layout.bar_rows.size(); ++r) {
-    if (per_bar || core.row_damaged[r])
+    if (per_bar || core.row_damaged(r))
       continue;
     const BarRow& row = core.layout.bar_rows[r];
     const FamilyInfo& fi = core.lat.family(row.family);
@@ -366,7 +363,7 @@ void bar_snapshot(const SimulationCore& core, std::vector<std::uint8_t>& state,
   // apart.
   for_each_row_by_law(
       core,
-      [&](std::size_t r) { return core.row_damaged[r] || per_bar || core.snapshot_by_law[r]; },
+      [&](std::size_t r) { return core.row_damaged(r) || per_bar || core.snapshot_by_law[r]; },
       [&](std::size_t r) {
         const index_t b0 = core.first_bar(r);
         const double l0 = core.lat.family(core.layout.bar_rows[r].family).l0;

@@ -265,7 +265,7 @@ inline bool bar_row_stays_intact(const SimulationCore& core, std::size_t r) {
 inline std::uint8_t bar_row_way(const SimulationCore& core, std::size_t r) {
   if (!core.fast_path || !bar_row_stays_intact(core, r))
     return kRowByPass;
-  if (!core.row_damaged[r])
+  if (!core.row_damaged(r))
     return kRowFast;
   const BarRow& row = core.layout.bar_rows[r];
   const auto [lo, hi] = core.damaged_span[r];
@@ -326,7 +326,7 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
       p += p0;
     std::array<const double*, kStates> read_states{};
     std::copy(states.begin(), states.end(), read_states.begin());
-    const bool intact = !core.row_damaged[r];
+    const bool intact = !core.row_damaged(r);
     bool past;
     // On a report step the kernels also give the row's elastic energy, its displacements
     // still in cache: the intact kernel sum w (l - l0)^2, the general kernel the law's.
@@ -444,10 +444,8 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
         continue;
       law.update(g.e, s, [&](BarState to) { events.push_back({b0 + i, to, step}); });
       Law::write(states.data(), i, s);
-      if (!law.pristine(s)) {
-        core.row_damaged[r] = 1;
+      if (!law.pristine(s))
         core.widen_damaged(r, p0 + i);
-      }
       core.row_history_changed[r] = 1;
     }
   }

@@ -126,19 +126,19 @@ struct SimulationCore {
   // bars' force over current length s = F / l lives only in per-thread plane buffers during a
   // step (see advance_rows).
   std::vector<UnsetVector<double>> states;
-  // Per bar row: some bar is not pristine (the law's pristine()): its damaged span (below)
-  // takes the general kernel.
-  std::vector<std::uint8_t> row_damaged;
-  // Per bar row, the bars [lo, hi) from its first to its last bar that is not pristine ({0, 0}
-  // in a pristine row): the general kernel takes those, the intact kernels the row's others
-  // (bar_rows). A bar never becomes pristine again, so the span only widens, and is the same
-  // whether it grew step by step or was found in the states of a resumed run.
+  // Per bar row, the bars [lo, hi) from its first to its last bar that is not pristine (the
+  // law's pristine(); {0, 0} in a pristine row): the general kernel takes those, the intact
+  // kernels the row's others (bar_rows). A bar never becomes pristine again, so the span only
+  // widens, and is the same whether it grew step by step or was found in the states of a resumed
+  // run.
   std::vector<std::array<index_t, 2>> damaged_span;
   void widen_damaged(std::size_t r, index_t i) {
     std::array<index_t, 2>& d = damaged_span[r];
     d = d[0] == d[1] ? std::array<index_t, 2>{i, i + 1}
                      : std::array<index_t, 2>{std::min(d[0], i), std::max(d[1], i + 1)};
   }
+  // Some bar of row r is not pristine (or is pre-cracked).
+  bool row_damaged(std::size_t r) const { return damaged_span[r][0] != damaged_span[r][1]; }
   // The intact fast path (SolverOptions::intact_at_nodes; bar_row_stays_intact). Per bar row:
   // whether its bars take it in this step (kRowFast: all of them; kRowFastAround: those outside
   // its damaged span, whose forces the bar pass computes) and the largest (l / l_p)^2 of its

@@ -111,10 +111,8 @@ template <class Law> void count_cycles(SimulationCore& core) {
             visit_law_row<Law, true>(core, r, lane, take);
           else
             visit_law_row<Law, false>(core, r, lane, take);
-          if (broke) {
-            core.row_damaged[r] = 1;
+          if (broke)
             core.row_history_changed[r] = 1;
-          }
         });
   }
 }

@@ -879,12 +879,12 @@ double Simulation::bytes_per_module() const {
   for (const NodalLoad& load : c.cond.loads)
     total += bytes(load.weight);
   total += bytes(l.link_ref) + bytes(l.row_kind) + bytes(l.link_const) + bytes(l.row_kinds) +
-           bytes(c.row_held) + bytes(c.row_damaged) + bytes(c.damaged_span) + bytes(l.node_rows) +
-           bytes(l.bar_rows) + bytes(c.row_fast) + bytes(c.line_fast) + bytes(c.row_ratio) +
-           bytes(l.row_inv_lp) + bytes(l.row_first_centre) + bytes(l.row_whole) +
-           bytes(l.bar_row_nodes) + bytes(c.node_row_motion) + bytes(l.edge_lanes) +
-           bytes(l.bar_code) + bytes(l.row_span) + bytes(l.row_origin) + bytes(l.row_window) +
-           bytes(l.state_origin) + bytes(l.code_origin) + bytes(l.bar_row_at);
+           bytes(c.row_held) + bytes(c.damaged_span) + bytes(l.node_rows) + bytes(l.bar_rows) +
+           bytes(c.row_fast) + bytes(c.line_fast) + bytes(c.row_ratio) + bytes(l.row_inv_lp) +
+           bytes(l.row_first_centre) + bytes(l.row_whole) + bytes(l.bar_row_nodes) +
+           bytes(c.node_row_motion) + bytes(l.edge_lanes) + bytes(l.bar_code) + bytes(l.row_span) +
+           bytes(l.row_origin) + bytes(l.row_window) + bytes(l.state_origin) +
+           bytes(l.code_origin) + bytes(l.bar_row_at);
   for (const auto& b : c.plane_buffers)
     total += bytes(b);
   for (const auto& b : c.line_stores)
