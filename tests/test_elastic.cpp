@@ -333,6 +333,32 @@ TEST(Elastic, ForcesAreMinusTheEnergyGradient) {
   }
 }
 
+// The run's look for displacements past a limit (time.stop_displacement, the blow-up test)
+// names the first node past it, in node order, on any thread count: whether the motions of
+// all nodes add up past the limit (as they do in any loaded body) does not matter, only each
+// component's size; a NaN counts as past any limit. A body of 24^3 modules (29,449 nodes) so
+// that the quick test runs on both threads.
+TEST(Simulation, FirstNodeBeyondNamesTheFirstNodePastTheLimit) {
+  for (const int threads : {1, 2}) {
+    Simulation sim = make_sim(24, 24, 24, 1.0, unit_material(0.2, 4.0));
+    sim.set_threads(threads);
+    const index_t nn = sim.lattice().num_nodes();
+    const double limit = 0.5;
+    // Every node at 0.4 along x and -0.4 along z: the sum is some 2e4 times the limit.
+    for (index_t n = 0; n < nn; ++n)
+      sim.set_displacement(n, {0.4, 0.0, -0.4});
+    EXPECT_EQ(sim.first_node_beyond(limit), nn) << threads << " threads";
+    const index_t a = nn / 3, b = 2 * nn / 3;
+    sim.set_displacement(b, {0.0, -0.6, 0.0});
+    EXPECT_EQ(sim.first_node_beyond(limit), b) << threads << " threads";
+    sim.set_displacement(a, {0.0, 0.0, std::numeric_limits<double>::quiet_NaN()});
+    EXPECT_EQ(sim.first_node_beyond(limit), a) << threads << " threads";
+    EXPECT_EQ(sim.first_node_beyond(1e300), a) << threads << " threads";
+    sim.set_displacement(a, {0.0, 0.0, 0.0});
+    EXPECT_EQ(sim.first_node_beyond(1e300), nn) << threads << " threads";
+  }
+}
+
 // The step loop gathers whole node rows in one fused pass, a missing link at a row's end
 // reading a zero pad; face, edge and end rows take other paths. On every kind of row its
 // forces must equal the reference per-bar loop's (internal_forces), which adds each bar's
