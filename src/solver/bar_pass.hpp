@@ -28,15 +28,16 @@ struct RowView {
 // afterwards; a part of a row passes which of its ends are the row's: first_end, last_end).
 // `Coded`: a shaped body's row, each bar's force and energy times its area factor
 // code / 4 (StepLayout::bar_code), its absent bars (code 0) with s = 0 and no state change.
-// (Inlined where it is called, as intact_row_kernel.)
+// Into `changed`, 1 at each bar whose state changes and 0 at the others, so that the slow path
+// looks at those bars alone. (Inlined where it is called, as intact_row_kernel.)
 template <class Law, bool PerBar, bool PerBarK, bool Intact, bool Energy = false,
           bool Coded = false>
 [[gnu::always_inline]] inline bool
 bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
                const std::array<const double*, Law::kStateArrays.size()>& states, Vec3 d0,
-               double l0, double k_row, const double* __restrict k_bar, double end_scale = 1.0,
-               double* energy = nullptr, const std::uint8_t* __restrict code = nullptr,
-               bool first_end = true, bool last_end = true) {
+               double l0, double k_row, const double* __restrict k_bar, double end_scale,
+               double* energy, const std::uint8_t* __restrict code, bool first_end, bool last_end,
+               double* __restrict changed) {
   const double inv_l0 = 1.0 / l0;
   int past = 0; // an int, not a bool: GCC vectorises only arithmetic reductions
   double sum = 0.0;
@@ -76,6 +77,7 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
     }
     sr[i] = si;
     Term t{present * (law.changes(g.e, s) ? 1 : 0), 0.0};
+    changed[i] = t.past;
     if constexpr (Energy)
       t.energy = law.elastic_energy(w * si, g, s);
     return t;
@@ -283,6 +285,9 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
   const bool per_bar = core.table.per_bar();
   const double* kb = per_bar ? core.table.k_bar().data() : nullptr;
   const std::uint64_t step = core.step;
+  // Which bars of the row at hand change state (from the general kernel), for its slow path.
+  double* const changed =
+      core.thread_scratch[static_cast<std::size_t>(omp_get_thread_num())].data();
   std::vector<Event>& events = core.thread_events[static_cast<std::size_t>(omp_get_thread_num())];
   bool all_fast = true;
   for (std::size_t r = begin; r < end; ++r) {
@@ -352,16 +357,19 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
         p += at;
       const std::uint8_t* cd = code ? code + at : nullptr;
       const bool first_end = o == 0, last_end = o + count == n;
+      double* const ch = changed + at;
       if (!P && code)
         return energies ? bar_row_kernel<Law, P, K, I, true, true>(count, w, c, st, fi.d0, fi.l0, k,
                                                                    kr, scale, &law_sum, cd,
-                                                                   first_end, last_end)
+                                                                   first_end, last_end, ch)
                         : bar_row_kernel<Law, P, K, I, false, true>(count, w, c, st, fi.d0, fi.l0,
-                                                                    k, kr, scale, nullptr, cd);
+                                                                    k, kr, scale, nullptr, cd,
+                                                                    first_end, last_end, ch);
       return energies
                  ? bar_row_kernel<Law, P, K, I, true>(count, w, c, st, fi.d0, fi.l0, k, kr, scale,
-                                                      &law_sum, nullptr, first_end, last_end)
-                 : bar_row_kernel<Law, P, K, I>(count, w, c, st, fi.d0, fi.l0, k, kr);
+                                                      &law_sum, nullptr, first_end, last_end, ch)
+                 : bar_row_kernel<Law, P, K, I>(count, w, c, st, fi.d0, fi.l0, k, kr, 1.0, nullptr,
+                                                nullptr, true, true, ch);
     };
     using yes = std::true_type;
     using no = std::false_type;
@@ -428,13 +436,14 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     }
     if (!past)
       continue;
-    // Slow path: some bar's state changes. Its stretch again, the law's update and events. The
+    // Slow path: some bar's state changes. The stretch again of each bar the general kernel
+    // found changing (its flag; an absent bar never changes), the law's update and events. The
     // force the kernel gave already holds for the new state (the law's contract: the update
     // changes no force at the strain that caused it).
     const double inv_l0 = 1.0 / fi.l0;
     for (index_t i = slow_lo; i < slow_hi; ++i) {
-      if (code && code[i] == 0)
-        continue; // an absent bar never changes
+      if (changed[i] == 0.0)
+        continue;
       const Stretch g = stretch(fi.d0.x + (v.ubx[i] - v.uax[i]), fi.d0.y + (v.uby[i] - v.uay[i]),
                                 fi.d0.z + (v.ubz[i] - v.uaz[i]), fi.l0, inv_l0);
       const Law law =

@@ -152,7 +152,8 @@ struct SimulationCore {
 
   int threads = 1;
   // fx, fy, fz, fw, three free-DOF rows and the nodes' motion, each of scratch_stride (the
-  // report's bar energies use the first two too)
+  // report's bar energies and the cycle count use the first two too, the bar pass the first
+  // for the bars whose state changes)
   mutable std::vector<AlignedVector<double>> thread_scratch;
   std::size_t scratch_stride = 0;
   std::vector<AlignedVector<double>> plane_buffers; // 3 per thread: two alternating, one top
