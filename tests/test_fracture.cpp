@@ -381,6 +381,36 @@ std::vector<double> thin_plate_run(int threads, std::vector<Event>& events,
   return u;
 }
 
+// A plate in plane strain along y (48 x 1 x 48 modules), damped, notched and pulled apart
+// along z until a crack runs; `kernel`: the node kernel without y components.
+std::vector<double> plane_y_plate_run(int threads, bool kernel, std::vector<Event>& events,
+                                      EnergyReport& report, bool& taken) {
+  const int before = omp_get_max_threads();
+  omp_set_num_threads(threads);
+  const index_t n = 48;
+  const MaterialSpec m = unit_material(0.01, 3.0);
+  const Lattice lat(n, 1, n, 1.0);
+  Conditions c;
+  c.plane_strain_axis = 1;
+  c.velocities.push_back(
+      {face(lat, Face::ZMax), kDofZ, {0, 0, 0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
+  c.velocities.push_back(
+      {face(lat, Face::ZMin), kDofZ, {0, 0, -0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
+  const Rectangle notch{"notch", {-0.1, -0.1, 0.5 * n + 0.25}, {0.25 * n + 0.1, 0, 0}, {0, 1.2, 0}};
+  SolverOptions o;
+  o.plane_strain_kernel = kernel;
+  o.damping = 0.002;
+  Simulation sim = make_sim(n, 1, n, 1.0, m, c, o, cut_bars(lat, notch, false).bars);
+  EXPECT_GT(static_cast<std::int64_t>(lat.num_bars()), kParallelMinItems);
+  step_run(sim, 50, {}, [&] { return sim.time() < 120.0; });
+  events = sim.take_events();
+  report = sim.last_report();
+  taken = sim.plane_strain_kernel_on();
+  std::vector<double> u = displacements(sim);
+  omp_set_num_threads(before);
+  return u;
+}
+
 TEST(Fracture, ThinPlateSharedByLinesIsThreadIndependent) {
   std::vector<Event> e1, e2;
   const std::vector<double> a = thin_plate_run(1, e1), b = thin_plate_run(2, e2);
@@ -544,6 +574,41 @@ TEST(Fracture, IntactBarsAtTheNodesChangeNoResult) {
     EXPECT_GT(share, 0.5) << "plate, " << threads << " threads: the fast path was hardly taken";
     EXPECT_GT(around, 0u) << "plate, " << threads << " threads: no damaged row took it";
   }
+}
+
+// The node kernel of a body in plane strain along y leaves out the y components, which are
+// zeros: the same bits as with them (displacements, events, energies), on any thread count.
+// A node given a y displacement turns it off for good.
+TEST(Fracture, PlaneStrainKernelChangesNoResult) {
+  if (!Simulation::intact_at_nodes_built())
+    GTEST_SKIP() << "this build has no AVX-512 node kernel";
+  std::vector<Event> e_ref;
+  EnergyReport r_ref;
+  bool taken = true;
+  const std::vector<double> ref = plane_y_plate_run(1, false, e_ref, r_ref, taken);
+  EXPECT_FALSE(taken);
+  EXPECT_GT(e_ref.size(), 20u) << "the crack did not run";
+  EXPECT_GT(r_ref.damping_dissipated, 0.0);
+  for (int threads : {1, 2}) {
+    std::vector<Event> e;
+    EnergyReport r;
+    const std::vector<double> u = plane_y_plate_run(threads, true, e, r, taken);
+    EXPECT_TRUE(taken) << threads << " threads";
+    expect_same_run(ref, e_ref, u, e, "plane strain, " + std::to_string(threads) + " threads");
+    EXPECT_EQ(r.external_work, r_ref.external_work) << threads << " threads";
+    EXPECT_EQ(r.elastic, r_ref.elastic) << threads << " threads";
+    EXPECT_EQ(r.kinetic, r_ref.kinetic) << threads << " threads";
+    EXPECT_EQ(r.damage_dissipated, r_ref.damage_dissipated) << threads << " threads";
+    EXPECT_EQ(r.damping_dissipated, r_ref.damping_dissipated) << threads << " threads";
+  }
+  Conditions c;
+  c.plane_strain_axis = 1;
+  Simulation sim = make_sim(4, 1, 4, 1.0, unit_material(), c);
+  EXPECT_TRUE(sim.plane_strain_kernel_on());
+  sim.set_displacement(3, {0.0, 0.0, 1e-3});
+  EXPECT_TRUE(sim.plane_strain_kernel_on());
+  sim.set_displacement(5, {0.0, 1e-3, 0.0});
+  EXPECT_FALSE(sim.plane_strain_kernel_on());
 }
 
 // On a plain step without damping the node kernel moves the nodes itself; a report step, or

@@ -88,12 +88,11 @@ template <class Law>
 void init_states(SimulationCore& core, const std::vector<index_t>& precracked) {
   constexpr std::size_t kStates = Law::kStateArrays.size();
   const index_t nb = core.lat.num_bars();
-  core.states.resize(kStates);
-  // (Zeroed by the threads together, which then own their pages: huge pages, first touched in
+  // (The arrays are sized by the simulation's constructor, one per state array of the law;
+  // zeroed by the threads together, which then own their pages: huge pages, first touched in
   // parallel.)
   const auto count = static_cast<std::int64_t>(core.layout.state_count);
   for (UnsetVector<double>& a : core.states) {
-    a.resize(core.layout.state_count);
 #pragma omp parallel for schedule(static) if (count > kParallelMinItems)
     for (std::int64_t q = 0; q < count; ++q)
       a[static_cast<std::size_t>(q)] = 0.0;

@@ -146,6 +146,8 @@ struct SimulationCore {
   // bar rows take the fast path. Per node row: the largest |u_{n+1} - u_n| of its nodes in the last
   // step (infinite when not known).
   bool fast_path = false;
+  // The node kernel without y components (SolverOptions::plane_strain_kernel).
+  bool plane_y = false;
   std::vector<std::uint8_t> row_fast, line_fast;
   std::vector<double> row_ratio;
   std::vector<double> node_row_motion;

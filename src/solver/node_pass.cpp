@@ -53,12 +53,20 @@ struct MixedLinks {
 // -Wuninitialized (_mm512_setzero_pd, _mm512_maskz_mov_pd).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
+//
+// PlaneY: a body in plane strain along y (every node's y held, u_y = 0 everywhere): the y
+// components are left out, with the same bits. A neighbour's relative y is 0 - 0 = +0, so the
+// bar's y is the reference's r_y exactly; the y force sums are not needed (the DOF is held);
+// the held y update stores u_y = 0 (already in w, the u_{n-1} it replaces) and adds +0 to the
+// motion's and the damping's squares, which leaves their sums as they are.
 template <int NL, bool AllFast, bool Edge, bool Shaped, bool Integrate, bool Held, bool Energy,
-          bool Damped>
+          bool Damped, bool PlaneY = false>
 inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
                         const EdgeLanes* lanes, std::int64_t i, const NodeRowArgs& a, __m512d& top,
                         __m512d& moved, __m512d* energy, __m512d& damped) {
-  const __m512d ax = _mm512_load_pd(a.ux + i), ay = _mm512_load_pd(a.uy + i),
+  static_assert(!PlaneY || (Integrate && Held), "plane strain along y: nodes moved, y held");
+  const __m512d ax = _mm512_load_pd(a.ux + i),
+                ay = PlaneY ? _mm512_setzero_pd() : _mm512_load_pd(a.uy + i),
                 az = _mm512_load_pd(a.uz + i);
   __m512d gx = _mm512_setzero_pd(), gy = _mm512_setzero_pd(), gz = _mm512_setzero_pd();
 #pragma GCC unroll 14
@@ -70,10 +78,10 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
     };
     const std::int64_t o = ref[l].other + i;
     const __m512d ux = _mm512_sub_pd(load(a.ux_all + o), ax),
-                  uy = _mm512_sub_pd(load(a.uy_all + o), ay),
+                  uy = PlaneY ? _mm512_setzero_pd() : _mm512_sub_pd(load(a.uy_all + o), ay),
                   uz = _mm512_sub_pd(load(a.uz_all + o), az);
     const __m512d dx = _mm512_add_pd(_mm512_set1_pd(L.rx), ux),
-                  dy = _mm512_add_pd(_mm512_set1_pd(L.ry), uy),
+                  dy = PlaneY ? _mm512_set1_pd(L.ry) : _mm512_add_pd(_mm512_set1_pd(L.ry), uy),
                   dz = _mm512_add_pd(_mm512_set1_pd(L.rz), uz);
     __m512d s;
     if (AllFast || mixed->fast[l]) {
@@ -123,7 +131,8 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
       s = load(mixed->s[l] + i);
     }
     gx = _mm512_fmadd_pd(s, dx, gx);
-    gy = _mm512_fmadd_pd(s, dy, gy);
+    if constexpr (!PlaneY)
+      gy = _mm512_fmadd_pd(s, dy, gy);
     gz = _mm512_fmadd_pd(s, dz, gz);
   }
   if constexpr (Integrate) {
@@ -153,15 +162,18 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
         mid = _mm512_mul_pd(k, _mm512_add_pd(o, v));
       return _mm512_sub_pd(e, u);
     };
-    __m512d mx, my, mz;
-    const __m512d qx = update(a.wx, ax, gx, kDofX, mx), qy = update(a.wy, ay, gy, kDofY, my),
+    __m512d mx, my = _mm512_setzero_pd(), mz;
+    const __m512d qx = update(a.wx, ax, gx, kDofX, mx),
+                  qy = PlaneY ? _mm512_setzero_pd() : update(a.wy, ay, gy, kDofY, my),
                   qz = update(a.wz, az, gz, kDofZ, mz);
-    moved = _mm512_max_pd(moved,
-                          _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(qx, qx), _mm512_mul_pd(qy, qy)),
-                                        _mm512_mul_pd(qz, qz)));
+    // (PlaneY: x^2 + (+0) is x^2, so the sums without their y terms.)
+    const __m512d q2 = PlaneY ? _mm512_mul_pd(qx, qx)
+                              : _mm512_add_pd(_mm512_mul_pd(qx, qx), _mm512_mul_pd(qy, qy));
+    moved = _mm512_max_pd(moved, _mm512_add_pd(q2, _mm512_mul_pd(qz, qz)));
     if constexpr (Damped) {
-      const __m512d v2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(mx, mx), _mm512_mul_pd(my, my)),
-                                       _mm512_mul_pd(mz, mz));
+      const __m512d m2 = PlaneY ? _mm512_mul_pd(mx, mx)
+                                : _mm512_add_pd(_mm512_mul_pd(mx, mx), _mm512_mul_pd(my, my));
+      const __m512d v2 = _mm512_add_pd(m2, _mm512_mul_pd(mz, mz));
       damped = _mm512_add_pd(
           damped,
           _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(a.alpha_dt), _mm512_load_pd(a.m + i)), v2));
@@ -180,7 +192,8 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
 // Only the vectors [from, to) are taken (RowKind); without Integrate the others' forces are 0.
 // `shaped`: the lanes carry a shaped body's area factors (EdgeLanes::q1, q2, q3), and a vector
 // without a present bar on any link is skipped.
-template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy, bool Damped>
+template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy, bool Damped,
+          bool PlaneY = false>
 double node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
                        const EdgeLanes* lanes, std::int64_t n, std::int64_t lo, std::int64_t hi,
                        std::int64_t from, std::int64_t to, bool shaped, const NodeRowArgs& a,
@@ -200,7 +213,7 @@ double node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks*
       }
   for (std::int64_t i = from; i < to; i += 8) {
     if (i >= lo && i + 8 <= hi) {
-      node_vector<NL, AllFast, false, false, Integrate, Held, Energy, Damped>(
+      node_vector<NL, AllFast, false, false, Integrate, Held, Energy, Damped, PlaneY>(
           c, ref, mixed, lanes, i, a, top, q, sums, dsum);
     } else {
       // (A vector of a shaped body's absent nodes, which no present bar reaches, has nothing
@@ -212,10 +225,10 @@ double node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks*
           any |= lanes[l].has;
       }
       if (!shaped)
-        node_vector<NL, AllFast, true, false, Integrate, Held, Energy, Damped>(
+        node_vector<NL, AllFast, true, false, Integrate, Held, Energy, Damped, PlaneY>(
             c, ref, mixed, lanes, i, a, top, q, sums, dsum);
       else if (any != 0)
-        node_vector<NL, AllFast, true, true, Integrate, Held, Energy, Damped>(
+        node_vector<NL, AllFast, true, true, Integrate, Held, Energy, Damped, PlaneY>(
             c, ref, mixed, lanes, i, a, top, q, sums, dsum);
       else if constexpr (!Integrate) {
         _mm512_store_pd(a.fx + i, _mm512_setzero_pd());
@@ -288,7 +301,8 @@ void portable_chunk(const LinkConst* c, const LinkRef* ref, const MixedLinks* mi
   }
 }
 
-template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy, bool Damped>
+template <int NL, bool AllFast, bool Integrate, bool Held, bool Energy, bool Damped,
+          bool PlaneY = false>
 double node_row_forces(const LinkConst* c, const LinkRef* ref, const MixedLinks* mixed,
                        const EdgeLanes*, std::int64_t n, std::int64_t lo, std::int64_t hi,
                        std::int64_t, std::int64_t, bool, const NodeRowArgs& a, double&, double*,
@@ -598,13 +612,14 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
           kVectorKernel && !Report && core.bc.imposed_row[r] < 0 && !(Loads && loaded);
       double motion = 0.0, damped = 0.0;
       double energy[kMaxRowLinks];
-      const auto forces = [&](auto count, auto fast, auto integrate, auto held_c) {
+      const auto forces = [&](auto count, auto fast, auto integrate, auto held_c, auto plane_c) {
         constexpr bool I = decltype(integrate)::value;
+        constexpr bool D = Damped && I;
         return node_row_forces < decltype(count)::value, decltype(fast)::value, I,
-               decltype(held_c)::value, Report && kVectorKernel,
-               Damped &&
-                   I > (lc, ref, &mixed, core.layout.edge_lanes.data() + kind.edge_begin, n, lo, hi,
-                        span.from, span.to, core.layout.coded(), args, motion, energy, damped);
+               decltype(held_c)::value, Report && kVectorKernel, D,
+               decltype(plane_c)::value >
+                   (lc, ref, &mixed, core.layout.edge_lanes.data() + kind.edge_begin, n, lo, hi,
+                    span.from, span.to, core.layout.coded(), args, motion, energy, damped);
       };
       const auto by_count = [&](auto... flags) {
         switch (padded) {
@@ -631,14 +646,18 @@ void node_rows_range(SimulationCore& core, std::size_t line, const double* s_pla
       double top = 0.0;
       if constexpr (kVectorKernel && !Report) {
         if (in_kernel) {
-          if (core.row_held[r])
-            top = all_fast ? by_count(yes{}, yes{}, yes{}) : by_count(no{}, yes{}, yes{});
+          if (core.plane_y) // (every node's y held)
+            top = all_fast ? by_count(yes{}, yes{}, yes{}, yes{})
+                           : by_count(no{}, yes{}, yes{}, yes{});
+          else if (core.row_held[r])
+            top =
+                all_fast ? by_count(yes{}, yes{}, yes{}, no{}) : by_count(no{}, yes{}, yes{}, no{});
           else
-            top = all_fast ? by_count(yes{}, yes{}, no{}) : by_count(no{}, yes{}, no{});
+            top = all_fast ? by_count(yes{}, yes{}, no{}, no{}) : by_count(no{}, yes{}, no{}, no{});
         }
       }
       if (!in_kernel)
-        top = all_fast ? by_count(yes{}, no{}, no{}) : by_count(no{}, no{}, no{});
+        top = all_fast ? by_count(yes{}, no{}, no{}, no{}) : by_count(no{}, no{}, no{}, no{});
       // The fast bar rows whose first nodes are this row's: their elastic energy, U = k (l -
       // l0)^2 / 2 with the area factors in the weights (as bar_rows has it for the others).
       // (A row with a damaged span adds them to its span's, which the bar pass gave.)

@@ -195,17 +195,19 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   set_platen_stiffness(c.table.ranges().E[1], c.table.ranges().rho[0]);
   const std::vector<DofMask> held = build_boundary(c);
   done("supports and loads");
+  // The bar states' arrays, one per state array of the law (set by init_states below).
+  c.states.resize(law_->state_arrays.size());
+  for (UnsetVector<double>& a : c.states)
+    a.resize(c.layout.state_count);
   if (!c.opt.defer_time_step) {
     // The displacement arrays lend their memory to the estimate's vectors and the bar states'
-    // (set by init_states below) to its other arrays where they have room, so that it needs
-    // no more memory than the steps do; the displacements zeroed after.
+    // to its other arrays where they have room, so that it needs no more memory than the steps
+    // do; the displacements zeroed after.
     StableStepScratch scratch;
     for (int a = 0; a < 6 && lend; ++a)
       scratch.v[a] = arrays[a]->data();
-    c.states.resize(law_->state_arrays.size());
     std::size_t lent = 6;
     for (UnsetVector<double>& a : c.states) {
-      a.resize(c.layout.state_count);
       for (std::size_t at = 0; lend && lent < 10 && at + c.lat.num_nodes() <= a.size();
            at += c.lat.num_nodes())
         scratch.v[lent++] = a.data() + at;
@@ -229,6 +231,9 @@ Simulation::Simulation(Lattice lattice, BarTable table, Conditions conditions,
   c.fast_path = c.opt.intact_at_nodes && kVectorKernel &&
                 std::any_of(c.layout.bar_rows.begin(), c.layout.bar_rows.end(),
                             [](const BarRow& r) { return !r.own_stiffness(); });
+  // A body in plane strain along y: the node kernel leaves out the y components (every node's
+  // y is held at 0), unless some node is given a y displacement or velocity.
+  c.plane_y = c.opt.plane_strain_kernel && kVectorKernel && c.cond.plane_strain_axis == 1;
   c.row_fast.assign(c.layout.bar_rows.size(), 0);
   c.line_fast.assign(c.layout.lines.size(), 0);
   c.node_row_motion.assign(c.layout.node_rows.size(), kUnknown);
@@ -358,6 +363,9 @@ std::size_t Simulation::fast_rows_around_damage() const {
   return static_cast<std::size_t>(
       std::count(core_->row_fast.begin(), core_->row_fast.end(), kRowFastAround));
 }
+bool Simulation::plane_strain_kernel_on() const {
+  return core_->plane_y;
+}
 bool Simulation::intact_at_nodes_built() {
   return kVectorKernel;
 }
@@ -462,6 +470,8 @@ void Simulation::set_half_step_velocity(index_t node, Vec3 v) {
   c.wx[q] = c.ux[q] - c.dt * v.x;
   c.wy[q] = c.uy[q] - c.dt * v.y;
   c.wz[q] = c.uz[q] - c.dt * v.z;
+  if (c.uy[q] != 0.0 || c.wy[q] != 0.0)
+    c.plane_y = false; // (the y of a body in plane strain is not where the kernel assumes it)
 }
 
 void Simulation::set_displacement(index_t node, Vec3 u) {
@@ -497,6 +507,9 @@ void Simulation::assign_displacements(index_t first, index_t count, const double
       c.for_each_run(first, count, [&](std::size_t q, index_t, index_t run) {
         if (c.layout.stored(q)) // (an absent node stays at rest)
           std::copy(in, in + run, u->begin() + static_cast<std::ptrdiff_t>(q));
+        if ((u == &c.uy || u == &c.wy) &&
+            std::any_of(in, in + run, [](double y) { return y != 0.0; }))
+          c.plane_y = false; // (as in set_half_step_velocity)
         in += run;
       });
 }

@@ -138,6 +138,10 @@ struct SolverOptions {
   // (bar_row_stays_intact; docs/architecture.md). AVX-512 builds only. The results are the
   // same bits either way; tests turn it off to check that.
   bool intact_at_nodes = true;
+  // A body in plane strain along y (Conditions::plane_strain_axis = 1): the node kernel leaves
+  // out the y components, which are zeros (docs/architecture.md, "Plane strain"). AVX-512
+  // builds only. The same bits either way; tests turn it off to check that.
+  bool plane_strain_kernel = true;
   // The bar law's kernels (solver/law_kernels.hpp); nullptr: the paper's bilinear law.
   const LawKernels* law = nullptr;
   // Told as the set-up goes through its phases: the phase just done and the seconds since the
@@ -362,6 +366,9 @@ public:
   // Whether this build has that fast path at all (AVX-512 builds; elsewhere every bar takes
   // the bar pass, whatever SolverOptions::intact_at_nodes says).
   static bool intact_at_nodes_built();
+  // Whether the node kernel leaves out the y components (SolverOptions::plane_strain_kernel: a
+  // body in plane strain along y whose nodes have been given no y displacement or velocity).
+  bool plane_strain_kernel_on() const;
 
   std::uint64_t broken_count() const;
   std::uint64_t softening_count() const;
