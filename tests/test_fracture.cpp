@@ -381,27 +381,17 @@ std::vector<double> thin_plate_run(int threads, std::vector<Event>& events,
   return u;
 }
 
-// A plate in plane strain along y (48 x 1 x 48 modules), damped, notched and pulled apart
-// along z until a crack runs; `kernel`: the node kernel without y components.
+// The notched plate in plane strain along y (NotchedPlate), damped, pulled apart until a
+// crack runs; `kernel`: the node kernel without y components.
 std::vector<double> plane_y_plate_run(int threads, bool kernel, std::vector<Event>& events,
                                       EnergyReport& report, bool& taken) {
   const int before = omp_get_max_threads();
   omp_set_num_threads(threads);
-  const index_t n = 48;
-  const MaterialSpec m = unit_material(0.01, 3.0);
-  const Lattice lat(n, 1, n, 1.0);
-  Conditions c;
-  c.plane_strain_axis = 1;
-  c.velocities.push_back(
-      {face(lat, Face::ZMax), kDofZ, {0, 0, 0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
-  c.velocities.push_back(
-      {face(lat, Face::ZMin), kDofZ, {0, 0, -0.01}, TimeFunction({LinearRamp{1.0, 5.0}})});
-  const Rectangle notch{"notch", {-0.1, -0.1, 0.5 * n + 0.25}, {0.25 * n + 0.1, 0, 0}, {0, 1.2, 0}};
+  const NotchedPlate plate;
   SolverOptions o;
   o.plane_strain_kernel = kernel;
   o.damping = 0.002;
-  Simulation sim = make_sim(n, 1, n, 1.0, m, c, o, cut_bars(lat, notch, false).bars);
-  EXPECT_GT(static_cast<std::int64_t>(lat.num_bars()), kParallelMinItems);
+  Simulation sim = plate.sim(o);
   step_run(sim, 50, {}, [&] { return sim.time() < 120.0; });
   events = sim.take_events();
   report = sim.last_report();
