@@ -437,12 +437,13 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     if (!past)
       continue;
     // Slow path: some bar's state changes. The stretch again of each bar the general kernel
-    // found changing (its flag; an absent bar never changes), the law's update and events. The
-    // force the kernel gave already holds for the new state (the law's contract: the update
-    // changes no force at the strain that caused it).
+    // found changing (its flag), the law's update and events. The force the kernel gave
+    // already holds for the new state (the law's contract: the update changes no force at the
+    // strain that caused it). An absent bar never changes (the kernel with per-bar constants
+    // does not read the codes, and flags one between two present nodes strained past e_p).
     const double inv_l0 = 1.0 / fi.l0;
     for (index_t i = slow_lo; i < slow_hi; ++i) {
-      if (changed[i] == 0.0)
+      if (changed[i] == 0.0 || (code && code[i] == 0))
         continue;
       const Stretch g = stretch(fi.d0.x + (v.ubx[i] - v.uax[i]), fi.d0.y + (v.uby[i] - v.uay[i]),
                                 fi.d0.z + (v.ubz[i] - v.uaz[i]), fi.l0, inv_l0);
