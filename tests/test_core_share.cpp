@@ -1,7 +1,9 @@
 // Sharing the machine's cores among ldem runs (util/core_share.hpp): which processes count as
 // runs, and each run's share.
 #include "util/core_share.hpp"
+#include "util/parallel.hpp"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <gtest/gtest.h>
@@ -61,4 +63,72 @@ TEST(CoreShare, EachRunTakesItsShareOfTheCores) {
   EXPECT_EQ(core_share(8, {3, 5, 7}, 7), 2);
   EXPECT_EQ(core_share(8, {3, 5}, 9), 2);      // unlisted: the third of three, 8 / 3
   EXPECT_EQ(core_share(4, {}, 9), 4);          // unlisted and alone
+}
+
+// The walk's slabs (util/parallel.hpp, balance_ranges): ranges of planes whose costs differ
+// move towards equal times, and ranges of equal cost stay where they are.
+namespace {
+// Each range's time: the sum of its planes' costs.
+std::vector<double> range_times(const std::vector<std::int64_t>& start,
+                                const std::vector<double>& cost) {
+  std::vector<double> t(start.size() - 1, 0.0);
+  for (std::size_t u = 0; u + 1 < start.size(); ++u)
+    for (std::int64_t k = start[u]; k < start[u + 1]; ++k)
+      t[u] += cost[static_cast<std::size_t>(k)];
+  return t;
+}
+double longest_of(const std::vector<double>& t) {
+  return *std::max_element(t.begin(), t.end());
+}
+} // namespace
+
+TEST(BalanceRanges, EqualCostsStayAndNoiseBelowTheMarginMovesNothing) {
+  std::vector<std::int64_t> start{0, 30, 61};
+  const std::vector<double> equal{30.0, 31.0}; // one per plane: balanced as well as it can be
+  balance_ranges(start, equal.data());
+  EXPECT_EQ(start[1], 30);
+  // 3 % apart: less than 1.2 planes' time (1.2 / 30 = 4 %), noise rather than a cost.
+  const std::vector<double> noisy{1.03, 1.0};
+  balance_ranges(start, noisy.data());
+  EXPECT_EQ(start[1], 30);
+}
+
+TEST(BalanceRanges, CostlyPlanesMoveTheBoundaryUntilTheTimesAreEven) {
+  // 61 planes of cost 1 but for a damaged layer, planes 20 to 27 at cost 6 (a crack's planes);
+  // two and three threads. The best split's longest range is found by trying every split; the
+  // rule moves one plane at a time and stops within a margin of 1.2 planes' time of even, so
+  // after enough rounds the longest range is at most the best one's plus two planes of the
+  // costliest kind (6 each), and on the way no range has fewer than 2 planes.
+  std::vector<double> cost(61, 1.0);
+  for (std::size_t k = 20; k < 28; ++k)
+    cost[k] = 6.0;
+  for (const std::size_t threads : {2u, 3u}) {
+    std::vector<std::int64_t> start(threads + 1);
+    for (std::size_t u = 0; u <= threads; ++u)
+      start[u] = static_cast<std::int64_t>(u * 61 / threads);
+    for (int round = 0; round < 200; ++round) {
+      const std::vector<double> t = range_times(start, cost);
+      balance_ranges(start, t.data());
+      for (std::size_t u = 0; u < threads; ++u)
+        ASSERT_GE(start[u + 1] - start[u], 2) << threads << " threads, round " << round;
+    }
+    const std::vector<double> t = range_times(start, cost);
+    const double longest = longest_of(t);
+    double best = 1e300;
+    if (threads == 2) {
+      for (std::int64_t b = 1; b < 61; ++b)
+        best = std::min(best, longest_of(range_times({0, b, 61}, cost)));
+    } else {
+      for (std::int64_t b = 1; b < 61; ++b)
+        for (std::int64_t c = b + 1; c < 61; ++c)
+          best = std::min(best, longest_of(range_times({0, b, c, 61}, cost)));
+    }
+    EXPECT_LE(longest, best + 2 * 6.0) << threads << " threads";
+    // And clearly better than the even split's.
+    std::vector<std::int64_t> even(threads + 1);
+    for (std::size_t u = 0; u <= threads; ++u)
+      even[u] = static_cast<std::int64_t>(u * 61 / threads);
+    const std::vector<double> te = range_times(even, cost);
+    EXPECT_LT(longest, longest_of(te)) << threads << " threads";
+  }
 }

@@ -28,6 +28,30 @@ void move_bar_line(const SimulationCore& core, std::size_t l, double* plane, dou
   }
 }
 
+// The threads' slabs of k-planes (SimulationCore::slab_start) for `nt` threads and `nplanes`
+// planes: even at first (and whenever the threads or planes change), then balanced every 16
+// steps by the threads' times in the walk (balance_ranges: a crack or a damaged layer makes
+// some planes cost several times others, and with an even split the other threads would wait
+// for the slowest at each step's end). Which thread takes a plane changes no result
+// (advance_rows).
+inline void balance_slabs(SimulationCore& core, std::int64_t nt, std::int64_t nplanes) {
+  std::vector<std::int64_t>& s = core.slab_start;
+  const auto n = static_cast<std::size_t>(nt);
+  if (s.size() != n + 1 || s.back() != nplanes || core.thread_busy.size() != 8 * n) {
+    s.resize(n + 1);
+    for (std::int64_t u = 0; u <= nt; ++u)
+      s[static_cast<std::size_t>(u)] = u * nplanes / nt;
+    core.thread_busy.assign(8 * n, 0.0);
+    core.busy_steps = 0;
+    return;
+  }
+  if (++core.busy_steps < 16)
+    return;
+  balance_ranges(s, core.thread_busy.data(), 8);
+  core.thread_busy.assign(8 * n, 0.0);
+  core.busy_steps = 0;
+}
+
 // Node line (j, k) needs the bar lines j - 1 and j of its plane and of the plane below, so
 // the bars of a line are computed moments before the nodes that gather them. Each thread
 // takes a box of lines: a slab of k-planes (all j) when the body has planes enough, else a
@@ -40,17 +64,29 @@ void move_bar_line(const SimulationCore& core, std::size_t l, double* plane, dou
 // `carry`), and what the neighbouring thread owns: the top plane of the slab below, or the
 // last line of the j range below. Each thread computes those first, before the one barrier.
 // Every bar line is computed once per step, whatever the threads and blocks, so they change
-// which thread does a row, never how the row is computed.
+// which thread does a row, never how the row is computed. The slabs are balanced by the
+// threads' times (balance_slabs).
 template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(SimulationCore& core) {
   const auto nplanes = static_cast<std::int64_t>(core.layout.planes.size());
   const auto nlines = static_cast<std::int64_t>(core.lat.ny()) + 1; // lines per plane
-#pragma omp parallel num_threads(core.threads) if (core.lat.num_bars() > kParallelMinItems)
+  const bool parallel = core.lat.num_bars() > kParallelMinItems;
+  if (parallel && nplanes >= 4 * core.threads)
+    balance_slabs(core, core.threads, nplanes);
+#pragma omp parallel num_threads(core.threads) if (parallel)
   {
+    const double started = omp_get_wtime();
     const std::int64_t nt = omp_get_num_threads(), t = omp_get_thread_num();
     const bool slabs = nplanes >= 4 * nt;
     auto first = [nt](std::int64_t n, std::int64_t u) { return u * n / nt; };
-    const std::int64_t k0 = slabs ? first(nplanes, t) : 0;
-    const std::int64_t k1 = slabs ? first(nplanes, t + 1) : nplanes;
+    // (The balanced slabs if they are this team's.)
+    const bool balanced = slabs && core.slab_start.size() == static_cast<std::size_t>(nt) + 1 &&
+                          core.slab_start.back() == nplanes;
+    const std::int64_t k0 = balanced ? core.slab_start[static_cast<std::size_t>(t)]
+                            : slabs  ? first(nplanes, t)
+                                     : 0;
+    const std::int64_t k1 = balanced ? core.slab_start[static_cast<std::size_t>(t) + 1]
+                            : slabs  ? first(nplanes, t + 1)
+                                     : nplanes;
     const std::int64_t j0 = slabs ? 0 : first(nlines, t);
     const std::int64_t j1 = slabs ? nlines : first(nlines, t + 1);
     const auto line = [&](std::int64_t j, std::int64_t k) {
@@ -84,7 +120,9 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
     std::int64_t below = t - 1;
     while (below > 0 && first(nlines, below) > j0 - 1)
       --below;
+    const double edges_done = omp_get_wtime();
 #pragma omp barrier
+    const double resumed = omp_get_wtime();
     for (std::int64_t jb = j0; box && jb < j1; jb += core.block_lines) {
       const std::int64_t je = std::min<std::int64_t>(jb + core.block_lines, j1);
       for (std::int64_t k = k0; k < k1; ++k) {
@@ -112,6 +150,10 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
           node_rows_range<Damped, Loads, Report>(core, line(j, k), s_plane, s_below);
       }
     }
+    // The thread's time in this walk but for the barrier's wait.
+    if (balanced)
+      core.thread_busy[8 * static_cast<std::size_t>(t)] +=
+          (edges_done - started) + (omp_get_wtime() - resumed);
   }
 }
 
