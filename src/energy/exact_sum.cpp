@@ -28,42 +28,6 @@ void negate(Limbs& a) { // two's complement
 
 } // namespace
 
-void ExactSum::add(double x) {
-  // The IEEE fields: |x| = mant 2^(exponent - 1075) (normal) or mant 2^-1074 (subnormal).
-  const auto bits = std::bit_cast<std::uint64_t>(x);
-  const auto exponent = static_cast<int>((bits >> 52) & 0x7ff);
-  std::uint64_t mant = bits & ((std::uint64_t{1} << 52) - 1);
-  if (exponent == 0x7ff) { // infinity or NaN
-    special_ += x;
-    return;
-  }
-  if (exponent != 0)
-    mant |= std::uint64_t{1} << 52;
-  if (mant == 0)
-    return;
-  // In units of 2^-160, |x| is mant shifted left by `shift` bits.
-  const int shift = (exponent == 0 ? -1074 : exponent - 1075) + kFractionBits;
-  Limbs t{};
-  if (shift < 0) {
-    if (shift <= -64)
-      return; // below 2^-160: dropped
-    t[0] = mant >> -shift;
-  } else {
-    const int limb = shift / 64, bit = shift % 64;
-    // mant has 53 bits: they must stay below the sign bit, 255.
-    if (limb >= kLimbs || (limb + 1 == kLimbs && bit > 64 - 54)) {
-      special_ += x > 0.0 ? HUGE_VAL : -HUGE_VAL; // beyond the range: shown as infinite
-      return;
-    }
-    t[static_cast<std::size_t>(limb)] = mant << bit;
-    if (bit != 0 && limb + 1 < kLimbs)
-      t[static_cast<std::size_t>(limb + 1)] = mant >> (64 - bit);
-  }
-  if ((bits >> 63) != 0)
-    negate(t);
-  add_limbs(limbs_, t);
-}
-
 void ExactSum::add(const ExactSum& other) {
   add_limbs(limbs_, other.limbs_);
   special_ += other.special_;
