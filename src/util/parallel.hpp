@@ -12,10 +12,11 @@ inline constexpr std::int64_t kParallelMinItems = 20000;
 
 // Contiguous ranges of items, one per thread (range u is [start[u], start[u + 1])), moved
 // towards equal times: at each boundary where the range on one side took longer than the other
-// (busy[stride * u], its thread's time over the same steps) by more than 1.2 times what one of its
-// items took on average, the boundary moves one item into it. One item at a time, and only past
-// that margin, so that ranges of equal cost stay where they are and noise does not move them
-// back and forth; no range gets fewer than `min_items` items this way.
+// (busy[stride * u], its thread's time over the same steps) by more than 1.2 times what one of
+// its items took on average, the slower range gives its item at the boundary to the other. One
+// item at a time, and only past that margin, so that ranges of equal cost stay where they are
+// and noise does not move them back and forth; no range gets fewer than `min_items` items this
+// way.
 inline void balance_ranges(std::vector<std::int64_t>& start, const double* busy,
                            std::size_t stride = 1, std::int64_t min_items = 2) {
   for (std::size_t u = 1; u + 1 < start.size(); ++u) {
