@@ -8,6 +8,7 @@
 #include "lattice/precrack.hpp"
 #include "lattice/shape.hpp"
 #include "solver/modes.hpp"
+#include "solver/stable_step.hpp"
 
 #include <array>
 #include <cmath>
@@ -363,6 +364,60 @@ TEST(ShapedBody, AFullMaskStepsAsTheBox) {
     EXPECT_EQ(x.y, y.y) << n;
     EXPECT_EQ(x.z, y.z) << n;
   }
+}
+
+// The stable step's estimate takes a shaped body of one material over each row's nodes that
+// have a bar of the body, and there over the longest run of nodes whose every link keeps one
+// area factor (the inner nodes of a row, or a face's) as a box's inner nodes, without reading
+// the bars' factors or, where no other node of the run holds one, the held DOF; the rest node
+// by node. A per-bar table of the same stiffness (a Gf that varies from bar to bar, E the same:
+// k_bar = k times the area factor, the same bits) takes every node of every row of the box,
+// absent or not. Their absent bars' terms are zeros, which change no sum, so both estimates
+// must be the same bits: the Lanczos estimate, its iterations and the Gershgorin bound. The
+// body: a cylinder along z cut from a 12 x 11 x 9 box, with a hole across it along y (rows of
+// two runs), its base held in z, one node inside a run held in x, the absent nodes held and of
+// unit mass (as the solver has them).
+TEST(ShapedBody, TheStableStepOfItsPresentBarsIsTheWholeBoxs) {
+  Lattice lat(12, 11, 9, 1.0);
+  ShapeOp hole;
+  hole.shape.type = Shape::Type::Cylinder;
+  hole.shape.a = {6.0, -1.0, 4.5};
+  hole.shape.b = {6.0, 12.0, 4.5};
+  hole.shape.radius = 1.6;
+  lat.set_modules(mask_of(12, 11, 9, 1.0, {keep_cylinder_z(6.0, 5.5, 5.2), hole}));
+  const MaterialSpec m = unit_material();
+  const BarTable one(lat, m);
+  ASSERT_FALSE(one.per_bar());
+  BarFields fields;
+  fields.Gf.resize(static_cast<std::size_t>(lat.num_bars()));
+  for (std::size_t b = 0; b < fields.Gf.size(); ++b)
+    fields.Gf[b] = m.Gf * (1.0 + 0.01 * static_cast<double>(b % 7));
+  const BarTable per_bar(lat, m, fields);
+  ASSERT_TRUE(per_bar.per_bar());
+  for (index_t b = 0; b < lat.num_bars(); ++b)
+    ASSERT_EQ(per_bar.k_bar()[static_cast<std::size_t>(b)], one.stiffness(lat, b)) << b;
+  Conditions c;
+  c.fixed.push_back({testing::face(lat, Face::ZMin), kDofZ});
+  c.fixed.push_back({make_node_set("one", {lat.corner(6, 1, 6)}, "one"), kDofX});
+  ASSERT_TRUE(lat.node_present(lat.corner(6, 1, 6)));
+  const Simulation sim = make_shaped(lat, m, c);
+  std::vector<double> mass = sim.masses();
+  std::vector<DofMask> held = sim.held_dofs();
+  index_t absent = 0;
+  for (index_t n = 0; n < lat.num_nodes(); ++n)
+    if (!lat.node_present(n)) {
+      mass[static_cast<std::size_t>(n)] = 1.0;
+      held[static_cast<std::size_t>(n)] = kDofAll;
+      ++absent;
+    }
+  EXPECT_GT(absent, lat.num_nodes() / 6);
+  const StableStep a = compute_stable_step(lat, one, mass, held);
+  const StableStep b = compute_stable_step(lat, per_bar, mass, held);
+  EXPECT_GT(a.iterations, 10);
+  EXPECT_EQ(a.omega_max, b.omega_max);
+  EXPECT_EQ(a.iterations, b.iterations);
+  EXPECT_EQ(a.omega_bound, b.omega_bound);
+  EXPECT_LE(a.omega_max, a.omega_bound);
 }
 
 // A shaped body of one material is stepped with its constants per family and each bar's area

@@ -99,9 +99,9 @@ template <class F> void for_each_bar_of(index_t i, const UnitLinks& u, F&& f) {
   }
 }
 
-// How a link's bars have their stiffness: k[0] for all, k[i] per bar, or k[0] times a quarter
-// of quarters[i] (UnitLinks).
-enum class Stiffness { One, PerBar, Quarters };
+// How a link's bars have their stiffness: k[0] for all, or k[i] per bar (a shaped body's other
+// bars are taken one by one, UnitLinks::k).
+enum class Stiffness { One, PerBar };
 
 // What a link of a row reads at its other nodes (node other_base + i for the row's node i): x
 // by component, 1 / sqrt(m) and the held DOF (whether any is held in that row); its unit vector
@@ -109,7 +109,6 @@ enum class Stiffness { One, PerBar, Quarters };
 struct LinkArrays {
   double e[3];
   const double* k;
-  const std::uint8_t* quarters; // (Stiffness::Quarters)
   const double *ox, *oy, *oz, *om;
   const unsigned char* oh;
   bool holds;
@@ -132,10 +131,7 @@ inline void add_bar(const LinkArrays& L, index_t i, const double* __restrict p, 
   proj += L.e[0] * (p[i] - sx);
   proj += L.e[1] * (p[len + i] - sy);
   proj += L.e[2] * (p[2 * len + i] - sz);
-  const double kp = (K == Stiffness::PerBar     ? L.k[i]
-                     : K == Stiffness::Quarters ? L.k[0] * (L.quarters[i] * 0.25)
-                                                : L.k[0]) *
-                    proj;
+  const double kp = (K == Stiffness::PerBar ? L.k[i] : L.k[0]) * proj;
   ax += kp * L.e[0];
   ay += kp * L.e[1];
   az += kp * L.e[2];
@@ -163,8 +159,6 @@ void all_links(index_t lo, index_t hi, const LinkArrays* links, int count,
       const double* __restrict const oz = L.oz + i;
       const double* __restrict const om = L.om + i;
       const double* __restrict const k = K == Stiffness::PerBar ? L.k + i : nullptr;
-      const std::uint8_t* __restrict const quarter =
-          K == Stiffness::Quarters ? L.quarters + i : nullptr;
       const unsigned char* __restrict const oh = L.oh + i;
       // (The other rows' values 8 lines ahead: more streams than the hardware follows.)
       __builtin_prefetch(ox + 64);
@@ -183,10 +177,7 @@ void all_links(index_t lo, index_t hi, const LinkArrays* links, int count,
         proj += e0 * (px[v] - sx);
         proj += e1 * (py[v] - sy);
         proj += e2 * (pz[v] - sz);
-        const double kp = (K == Stiffness::PerBar     ? k[v]
-                           : K == Stiffness::Quarters ? k0 * (quarter[v] * 0.25)
-                                                      : k0) *
-                          proj;
+        const double kp = (K == Stiffness::PerBar ? k[v] : k0) * proj;
         ax[v] += kp * e0;
         ay[v] += kp * e1;
         az[v] += kp * e2;
@@ -320,6 +311,68 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
     row_even[r] = even;
   }
 
+  // A shaped body's rows (Stiffness::Quarters): the nodes [a, b) with a bar of the body (beyond
+  // them every bar is absent, its stiffness 0: terms +-0 that leave each sum as it is, so y is
+  // +0 there), and among them the longest run of nodes [u0, u1) whose every link has a bar of
+  // one area factor along the run (one quarter: of the whole factor 4 inside the body, 2 on a
+  // face): those take k times that quarter / 4 per link (all_links with Stiffness::One), the
+  // numbers UnitLinks::k gives, without reading the bars' bytes (14 more streams than the box
+  // reads). The rest of [a, b) takes end_node. The row is the box's, but its cost that of its
+  // bars. (The absent nodes are held, so nearly every row of the box has held nodes; a run
+  // whose other nodes hold none reads no held DOF: times 1 on every DOF, the same numbers.)
+  struct Window {
+    index_t a = 0, b = 0, u0 = 0, u1 = 0;
+    bool holds = false; // (some other node of the run holds a DOF)
+  };
+  std::vector<Window> windows(quarters ? rows.size() : 0);
+  if (quarters) {
+#pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
+    for (std::int64_t r = 0; r < nrows; ++r) {
+      const NodeRow& row = rows[r];
+      RowLink links[kMaxRowLinks];
+      const int count = row_links(lat, row, links);
+      Window& win = windows[static_cast<std::size_t>(r)];
+      win.a = row.length;
+      for (int l = 0; l < count; ++l)
+        for (index_t i = links[l].ilo; i < links[l].ihi; ++i)
+          if (quarters[static_cast<std::size_t>(links[l].bar_base + i)] != 0) {
+            win.a = std::min(win.a, i);
+            win.b = std::max<index_t>(win.b, i + 1);
+          }
+      win.b = std::max(win.a, win.b);
+      // Node e continues a run from node i if each link has a bar at both, of the same quarter.
+      const auto same = [&](index_t i, index_t e) {
+        for (int l = 0; l < count; ++l) {
+          const RowLink& L = links[l];
+          if (L.ihi > L.ilo && (e < L.ilo || e >= L.ihi ||
+                                quarters[static_cast<std::size_t>(L.bar_base + e)] !=
+                                    quarters[static_cast<std::size_t>(L.bar_base + i)]))
+            return false;
+        }
+        return true;
+      };
+      for (index_t i = win.a; i < win.b;) {
+        if (!same(i, i)) {
+          ++i;
+          continue;
+        }
+        index_t e = i + 1;
+        while (e < win.b && same(i, e))
+          ++e;
+        if (e - i > win.u1 - win.u0) {
+          win.u0 = i;
+          win.u1 = e;
+        }
+        i = e;
+      }
+      if (win.u1 == win.u0)
+        win.u0 = win.u1 = win.a;
+      for (int l = 0; l < count; ++l)
+        for (index_t i = win.u0; i < win.u1 && links[l].ihi > links[l].ilo; ++i)
+          win.holds = win.holds || held[static_cast<std::size_t>(links[l].other_base + i)] != 0;
+    }
+  }
+
   // y = M^-1/2 K M^-1/2 x on the owned nodes, gathered per node from M^-1/2 x on the free DOF
   // (a ghost node's from its owner's x), a row at a time; and each row's sum of y . x in
   // row_sums, added as row_sum() adds (in order along the row, node by node x, y, z).
@@ -340,13 +393,17 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       const NodeRow& row = rows[r];
       const UnitLinks u(lat, table, kb, quarters, row);
       const std::size_t len = row.length, first = row.first;
+      // The nodes to compute: all of the row's, or a shaped body's window (Window).
+      const Window win =
+          quarters ? windows[static_cast<std::size_t>(r)] : Window{0, row.length, 0, row.length};
+      const auto wa = static_cast<std::size_t>(win.a), wb = static_cast<std::size_t>(win.b);
       // The row's M^-1/2 x (p) and its nodes' sums (acc), by component.
       thread_local AlignedVector<double> buf;
-      buf.resize(6 * len); // (every value set below)
+      buf.resize(6 * len); // (every value read is set below)
       double* __restrict const p = buf.data();
       double* __restrict const acc = p + 3 * len;
       for (int d = 0; d < 3; ++d)
-        for (std::size_t i = 0; i < len; ++i)
+        for (std::size_t i = wa; i < wb; ++i)
           p[d * len + i] = x.c[d][first + i] * rsm[first + i] * free_dof(first + i, d);
       // Each link's arrays (the other nodes: node other_base + i for the row's node i), and
       // the nodes [f0, f1) where every link has a bar of its inner stiffness (or per bar).
@@ -363,7 +420,6 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
         holds = holds || other_holds;
         links[active++] = {{u.e[l][0], u.e[l][1], u.e[l][2]},
                            kb ? kb + L.bar_base : &u.k_inner[l],
-                           quarters ? quarters + L.bar_base : nullptr,
                            x.c[0] + o,
                            x.c[1] + o,
                            x.c[2] + o,
@@ -374,6 +430,18 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
         f1 = std::min<index_t>(f1, L.ihi - 1);
       }
       f1 = std::max(f0, f1);
+      // (A shaped body's run: each link's k times its quarter there.)
+      double k_run[kMaxRowLinks];
+      if (quarters) {
+        f0 = win.u0;
+        f1 = win.u1;
+        for (int l = 0, a = 0; l < u.count && f1 > f0; ++l)
+          if (u.links[l].ihi > u.links[l].ilo) {
+            k_run[a] = u.k(l, f0);
+            links[a].k = &k_run[a];
+            ++a;
+          }
+      }
       // The nodes outside [f0, f1) one by one, each node's terms in the order of its links.
       const auto end_node = [&](index_t i) {
         double ax = 0.0, ay = 0.0, az = 0.0;
@@ -393,29 +461,33 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
         acc[len + i] = ay;
         acc[2 * len + i] = az;
       };
-      for (index_t i = 0; i < f0; ++i)
+      for (index_t i = win.a; i < f0; ++i)
         end_node(i);
-      for (index_t i = f1; i < row.length; ++i)
+      for (index_t i = f1; i < win.b; ++i)
         end_node(i);
       // The nodes [f0, f1), every link at once (the sums held in registers).
       const auto every_link = [&](auto holds_dof) {
         constexpr bool H = decltype(holds_dof)::value;
         if (kb)
           all_links<H, Stiffness::PerBar>(f0, f1, links, active, p, len, acc);
-        else if (quarters)
-          all_links<H, Stiffness::Quarters>(f0, f1, links, active, p, len, acc);
         else
           all_links<H, Stiffness::One>(f0, f1, links, active, p, len, acc);
       };
-      if (holds)
+      if (quarters ? win.holds : holds)
         every_link(std::true_type{});
       else
         every_link(std::false_type{});
-      for (int d = 0; d < 3; ++d)
-        for (std::size_t i = 0; i < len; ++i)
+      for (int d = 0; d < 3; ++d) {
+        for (std::size_t i = 0; i < wa; ++i)
+          y.c[d][first + i] = 0.0;
+        for (std::size_t i = wa; i < wb; ++i)
           y.c[d][first + i] = acc[d * len + i] * rsm[first + i] * free_dof(first + i, d);
+        for (std::size_t i = wb; i < len; ++i)
+          y.c[d][first + i] = 0.0;
+      }
+      // (Beyond the window each term is 0 times x: +-0, which leaves the sum as it is.)
       double s = 0.0;
-      for (std::size_t i = first; i < first + len; ++i) {
+      for (std::size_t i = first + wa; i < first + wb; ++i) {
         s += y.c[0][i] * x.c[0][i];
         s += y.c[1][i] * x.c[1][i];
         s += y.c[2][i] * x.c[2][i];
@@ -459,7 +531,10 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
                 row_even[static_cast<std::size_t>(row_of(row.first))];
     for (int l = 0; l < u.count && skip; ++l)
       skip = row_even[static_cast<std::size_t>(row_of(u.links[l].other_base + 2))] != 0;
-    for (index_t i = 0; i < row.length; ++i) {
+    // (A shaped body's nodes beyond its row's window have no bar of the body: sums of 0.)
+    const index_t from = quarters ? windows[static_cast<std::size_t>(r)].a : 0,
+                  to = quarters ? windows[static_cast<std::size_t>(r)].b : row.length;
+    for (index_t i = from; i < to; ++i) {
       if (skip && i == 3)
         i = row.length - 3;
       const index_t node = row.first + i;
