@@ -311,21 +311,28 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
     row_even[r] = even;
   }
 
-  // A shaped body's rows (Stiffness::Quarters): the nodes [a, b) with a bar of the body (beyond
-  // them every bar is absent, its stiffness 0: terms +-0 that leave each sum as it is, so y is
-  // +0 there), and among them the longest run of nodes [u0, u1) whose every link has a bar of
-  // one area factor along the run (one quarter: of the whole factor 4 inside the body, 2 on a
-  // face): those take k times that quarter / 4 per link (all_links with Stiffness::One), the
-  // numbers UnitLinks::k gives, without reading the bars' bytes (14 more streams than the box
-  // reads). The rest of [a, b) takes end_node. The row is the box's, but its cost that of its
-  // bars. (The absent nodes are held, so nearly every row of the box has held nodes; a run
-  // whose other nodes hold none reads no held DOF: times 1 on every DOF, the same numbers.)
+  // A shaped body's rows: the nodes [a, b) with a bar of the body (beyond them every bar is
+  // absent, its stiffness 0: terms +-0 that leave each sum as it is, so y is +0 there), and
+  // among them the longest run of nodes [u0, u1) whose every link has a bar there, taken as a
+  // box's inner nodes: of one material (quarters), a run of one area factor per link (one
+  // quarter: of the whole factor 4 inside the body, 2 on a face), whose bars take k times that
+  // quarter / 4 per link (all_links with Stiffness::One), the numbers UnitLinks::k gives,
+  // without reading the bars' bytes (14 more streams than the box reads); per bar, their own k
+  // (Stiffness::PerBar). The rest of [a, b) takes end_node. The row is the box's, but its cost
+  // that of its bars. (The absent nodes are held, so nearly every row of the box has held
+  // nodes; a run whose other nodes hold none reads no held DOF: times 1 on every DOF, the same
+  // numbers.)
   struct Window {
     index_t a = 0, b = 0, u0 = 0, u1 = 0;
     bool holds = false; // (some other node of the run holds a DOF)
   };
-  std::vector<Window> windows(quarters ? rows.size() : 0);
-  if (quarters) {
+  const bool windowed = quarters || (kb && lat.shaped());
+  const auto present = [&](std::int64_t bar) {
+    return quarters ? quarters[static_cast<std::size_t>(bar)] != 0
+                    : kb[static_cast<std::size_t>(bar)] != 0.0;
+  };
+  std::vector<Window> windows(windowed ? rows.size() : 0);
+  if (windowed) {
 #pragma omp parallel for schedule(static) if (3 * n > kParallelMinItems)
     for (std::int64_t r = 0; r < nrows; ++r) {
       const NodeRow& row = rows[r];
@@ -335,18 +342,20 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       win.a = row.length;
       for (int l = 0; l < count; ++l)
         for (index_t i = links[l].ilo; i < links[l].ihi; ++i)
-          if (quarters[static_cast<std::size_t>(links[l].bar_base + i)] != 0) {
+          if (present(links[l].bar_base + i)) {
             win.a = std::min(win.a, i);
             win.b = std::max<index_t>(win.b, i + 1);
           }
       win.b = std::max(win.a, win.b);
-      // Node e continues a run from node i if each link has a bar at both, of the same quarter.
+      // Node e continues a run from node i if each link has a bar at both (of one material: of
+      // the same quarter).
       const auto same = [&](index_t i, index_t e) {
         for (int l = 0; l < count; ++l) {
           const RowLink& L = links[l];
-          if (L.ihi > L.ilo && (e < L.ilo || e >= L.ihi ||
-                                quarters[static_cast<std::size_t>(L.bar_base + e)] !=
-                                    quarters[static_cast<std::size_t>(L.bar_base + i)]))
+          if (L.ihi > L.ilo &&
+              (e < L.ilo || e >= L.ihi ||
+               (quarters && quarters[static_cast<std::size_t>(L.bar_base + e)] !=
+                                quarters[static_cast<std::size_t>(L.bar_base + i)])))
             return false;
         }
         return true;
@@ -395,7 +404,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
       const std::size_t len = row.length, first = row.first;
       // The nodes to compute: all of the row's, or a shaped body's window (Window).
       const Window win =
-          quarters ? windows[static_cast<std::size_t>(r)] : Window{0, row.length, 0, row.length};
+          windowed ? windows[static_cast<std::size_t>(r)] : Window{0, row.length, 0, row.length};
       const auto wa = static_cast<std::size_t>(win.a), wb = static_cast<std::size_t>(win.b);
       // The row's M^-1/2 x (p) and its nodes' sums (acc), by component.
       thread_local AlignedVector<double> buf;
@@ -430,11 +439,13 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
         f1 = std::min<index_t>(f1, L.ihi - 1);
       }
       f1 = std::max(f0, f1);
-      // (A shaped body's run: each link's k times its quarter there.)
+      // (A shaped body's run; of one material, each link's k times its quarter there.)
       double k_run[kMaxRowLinks];
-      if (quarters) {
+      if (windowed) {
         f0 = win.u0;
         f1 = win.u1;
+      }
+      if (quarters) {
         for (int l = 0, a = 0; l < u.count && f1 > f0; ++l)
           if (u.links[l].ihi > u.links[l].ilo) {
             k_run[a] = u.k(l, f0);
@@ -473,7 +484,7 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
         else
           all_links<H, Stiffness::One>(f0, f1, links, active, p, len, acc);
       };
-      if (quarters ? win.holds : holds)
+      if (windowed ? win.holds : holds)
         every_link(std::true_type{});
       else
         every_link(std::false_type{});
@@ -532,8 +543,8 @@ StableStep compute_stable_step(const Lattice& lat, const BarTable& table,
     for (int l = 0; l < u.count && skip; ++l)
       skip = row_even[static_cast<std::size_t>(row_of(u.links[l].other_base + 2))] != 0;
     // (A shaped body's nodes beyond its row's window have no bar of the body: sums of 0.)
-    const index_t from = quarters ? windows[static_cast<std::size_t>(r)].a : 0,
-                  to = quarters ? windows[static_cast<std::size_t>(r)].b : row.length;
+    const index_t from = windowed ? windows[static_cast<std::size_t>(r)].a : 0,
+                  to = windowed ? windows[static_cast<std::size_t>(r)].b : row.length;
     for (index_t i = from; i < to; ++i) {
       if (skip && i == 3)
         i = row.length - 3;
