@@ -107,12 +107,15 @@ inline void node_vector(const LinkConst* c, const LinkRef* ref, const MixedLinks
                                         static_cast<__mmask8>(m & ~span), w);
         }
       if constexpr (Edge) {
-        // The bar row's first and last bars (node i = ilo and ihi - 1) carry their own factor.
-        const __m512d sc = _mm512_set1_pd(L.scale);
-        s = _mm512_mask_mul_pd(s, lanes[l].first, s, sc);
-        s = _mm512_mask_mul_pd(s, lanes[l].last, s, sc);
-        if constexpr (Shaped)
+        // The bar row's first and last bars (node i = ilo and ihi - 1) carry their own factor;
+        // a shaped body's carry theirs in the quarters (its lanes' first and last are empty).
+        if constexpr (Shaped) {
           s = times_quarters(s, lanes[l].q1, lanes[l].q2, lanes[l].q3);
+        } else {
+          const __m512d sc = _mm512_set1_pd(L.scale);
+          s = _mm512_mask_mul_pd(s, lanes[l].first, s, sc);
+          s = _mm512_mask_mul_pd(s, lanes[l].last, s, sc);
+        }
         s = _mm512_maskz_mov_pd(m, s);
         if (L.first_node)
           top = _mm512_mask_max_pd(top, static_cast<__mmask8>(m & ~span), top,
