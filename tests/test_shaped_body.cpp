@@ -369,15 +369,15 @@ TEST(ShapedBody, AFullMaskStepsAsTheBox) {
 // The stable step's estimate takes a shaped body over each row's nodes that have a bar of the
 // body, and there over the longest run of nodes whose every link has a bar as a box's inner
 // nodes (of one material, a run whose every link keeps one area factor, without reading the
-// bars' factors), reading the held DOF only where some other node of the run holds one; the
-// rest node by node. A per-bar table of the same stiffness (a Gf that varies from bar to bar,
-// E the same: k_bar = k times the area factor, the same bits) is taken the same way on the
-// shaped lattice, and over every node of every row on the box's (unshaped: the same numbering,
-// its absent bars of k = 0 in the table). The absent bars' terms are zeros, which change no
-// sum, so the three estimates must be the same bits: the Lanczos estimate, its iterations and
-// the Gershgorin bound. The
-// body: a cylinder along z cut from a 12 x 11 x 9 box, with a hole across it along y (rows of
-// two runs), its base held in z, one node inside a run held in x, the absent nodes held and of
+// bars' factors); the rest node by node. A per-bar table of the same stiffness (a Gf that
+// varies from bar to bar, E the same: k_bar = k times the area factor, the same bits) is taken
+// the same way on the shaped lattice, and over every node of every row on the box's (unshaped:
+// the same numbering, its absent bars of k = 0 in the table). The absent bars' terms are
+// zeros, which change no sum, so the three estimates must be the same bits: the Lanczos
+// estimate, its iterations and the Gershgorin bound. (Whether a run reads its other nodes'
+// held DOF cannot change them: the Lanczos vectors are 0 on every held DOF.) The body: a
+// cylinder along z cut from a 12 x 11 x 9 box, with a hole across it along y (rows of two
+// runs), its base held in z, one node inside a run held in x, the absent nodes held and of
 // unit mass (as the solver has them).
 TEST(ShapedBody, TheStableStepOfItsPresentBarsIsTheWholeBoxs) {
   Lattice lat(12, 11, 9, 1.0);
