@@ -92,6 +92,22 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
       sum += t.energy;
     }
     past = passed > 0.0;
+  } else if (nn >= 8) {
+    // Whole vectors of 8 bars, the last one ending at the row's end (over the one before it if
+    // n is not a multiple of 8: those bars are taken again with the same bits, and `past` only
+    // tells whether some bar changes). GCC 12 leaves the rest of a loop of n to a scalar loop,
+    // whose square roots and divisions, one bar at a time, took most of a short row's time.
+    const std::int64_t whole = nn - nn % 8;
+#pragma omp simd reduction(+ : past)
+    for (std::int64_t i = 0; i < whole; ++i)
+      past += bar(i).past;
+    if (whole < nn) {
+      int last = 0;
+#pragma omp simd reduction(+ : last)
+      for (std::int64_t l = 0; l < 8; ++l)
+        last += bar(nn - 8 + l).past;
+      past += last;
+    }
   } else {
 #pragma omp simd reduction(+ : past)
     for (std::int64_t i = 0; i < nn; ++i)
@@ -121,7 +137,8 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
 // area factor code / 4 (as the node kernel's times_quarters has it, the same bits), its absent
 // bars with s = 0, neither tested nor measured.
 // [skip_lo, skip_hi): bars that another kernel computes afterwards (a damaged span): neither
-// tested, measured nor summed (their forces may be written, to be overwritten).
+// tested, measured nor summed (their forces may be written, to be overwritten; the vectors
+// wholly inside it are not taken at all).
 template <bool Energy>
 [[gnu::always_inline]] inline bool
 intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_lim,
@@ -186,10 +203,12 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
       acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, keep, ends, end_scale);
     }
   };
+  // (Vectors wholly inside [skip_lo, skip_hi) are left to the other kernel: no store.)
   index_t i = 0;
   for (; i + 8 <= n; i += 8)
-    vector.template operator()<false>(i, 0xFF);
-  if (i < n)
+    if (i < skip_lo || i + 8 > skip_hi)
+      vector.template operator()<false>(i, 0xFF);
+  if (i < n && (i < skip_lo || n > skip_hi))
     vector.template operator()<true>(i, static_cast<__mmask8>((1u << (n - i)) - 1u));
   if constexpr (Energy)
     *energy = _mm512_reduce_add_pd(acc);
@@ -347,6 +366,19 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
                              index_t count) {
       constexpr bool P = decltype(per_bar_c)::value, K = decltype(per_bar_k_c)::value,
                      I = decltype(intact_c)::value;
+      // Fewer than 8 bars (a damaged span) of a row of 8 or more, outside a report step: the
+      // kernel takes the 8 bars from `o` on (or the row's last 8), a whole vector, and the
+      // others' forces are put back as the intact kernel wrote them. (Those bars are pristine
+      // and below their elastic limit, by the intact kernel's test or the fast path's bound,
+      // so no state of theirs changes; the slow path looks at the span's bars only.)
+      const index_t want_o = o, want_count = count;
+      double kept[8];
+      const bool widened = !energies && count < 8 && n >= 8;
+      if (widened) {
+        o = std::min<index_t>(o, n - 8);
+        count = 8;
+        std::copy(v.s + o, v.s + o + 8, kept);
+      }
       const auto at = static_cast<std::size_t>(o);
       const double* kr = K ? kb + b0 + o : nullptr;
       const RowView w{v.uax + at, v.uay + at, v.uaz + at, v.ubx + at,
@@ -358,18 +390,25 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
       const std::uint8_t* cd = code ? code + at : nullptr;
       const bool first_end = o == 0, last_end = o + count == n;
       double* const ch = changed + at;
+      bool changes;
       if (!P && code)
-        return energies ? bar_row_kernel<Law, P, K, I, true, true>(count, w, c, st, fi.d0, fi.l0, k,
-                                                                   kr, scale, &law_sum, cd,
-                                                                   first_end, last_end, ch)
-                        : bar_row_kernel<Law, P, K, I, false, true>(count, w, c, st, fi.d0, fi.l0,
-                                                                    k, kr, scale, nullptr, cd,
-                                                                    first_end, last_end, ch);
-      return energies
-                 ? bar_row_kernel<Law, P, K, I, true>(count, w, c, st, fi.d0, fi.l0, k, kr, scale,
-                                                      &law_sum, nullptr, first_end, last_end, ch)
-                 : bar_row_kernel<Law, P, K, I>(count, w, c, st, fi.d0, fi.l0, k, kr, 1.0, nullptr,
-                                                nullptr, true, true, ch);
+        changes = energies ? bar_row_kernel<Law, P, K, I, true, true>(count, w, c, st, fi.d0, fi.l0,
+                                                                      k, kr, scale, &law_sum, cd,
+                                                                      first_end, last_end, ch)
+                           : bar_row_kernel<Law, P, K, I, false, true>(count, w, c, st, fi.d0,
+                                                                       fi.l0, k, kr, scale, nullptr,
+                                                                       cd, first_end, last_end, ch);
+      else
+        changes = energies ? bar_row_kernel<Law, P, K, I, true>(count, w, c, st, fi.d0, fi.l0, k,
+                                                                kr, scale, &law_sum, nullptr,
+                                                                first_end, last_end, ch)
+                           : bar_row_kernel<Law, P, K, I>(count, w, c, st, fi.d0, fi.l0, k, kr, 1.0,
+                                                          nullptr, nullptr, true, true, ch);
+      if (widened)
+        for (index_t i = o; i < o + 8; ++i)
+          if (i < want_o || i >= want_o + want_count)
+            v.s[i] = kept[i - o];
+      return changes;
     };
     using yes = std::true_type;
     using no = std::false_type;
