@@ -4,7 +4,10 @@
 #include "lattice/node_set.hpp"
 #include "solver/simulation.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <gtest/gtest.h>
+#include <limits>
 #include <vector>
 
 namespace ldem::testing {
@@ -79,6 +82,34 @@ inline std::vector<std::vector<double>> all_state(const Simulation& sim) {
                      out.back());
   }
   return out;
+}
+
+// One step of `sim` from rest (every half-step velocity 0, set by the caller) against the
+// per-bar loop (Simulation::internal_forces): m v_{1/2} / dt must be each node's force f(u_0).
+// The step's intact kernel computes s = k - k l0 / l with 1 / l from the hardware estimate,
+// whose error is about 2 eps k whatever the strain, so a node's force (14 links, lengths up to
+// L = 1) differs by at most 14 * 2 eps k_max; twice that for the force recovered from the
+// velocity. A term lost, doubled or taken with another bar's state would be of the order of
+// the largest force (asserted first to be a million times the tolerance or more).
+inline void expect_step_from_rest_gives_bar_forces(Simulation& sim) {
+  const Lattice& lat = sim.lattice();
+  std::vector<double> fx, fy, fz;
+  sim.internal_forces(fx, fy, fz);
+  double fmax = 0.0, k_max = 0.0;
+  for (index_t n = 0; n < lat.num_nodes(); ++n)
+    fmax = std::max({fmax, std::abs(fx[n]), std::abs(fy[n]), std::abs(fz[n])});
+  for (int f = 0; f < kFamilies; ++f)
+    k_max = std::max(k_max, sim.table().family(f).k);
+  const double tol = 4 * 14 * std::numeric_limits<double>::epsilon() * k_max * 1.0;
+  ASSERT_LT(tol, 1e-6 * fmax);
+  sim.step();
+  for (index_t n = 0; n < lat.num_nodes(); ++n) {
+    const Vec3 v = sim.half_step_velocity(n);
+    const double k = sim.mass(n) / sim.dt();
+    EXPECT_NEAR(v.x * k, fx[n], tol) << "node " << n;
+    EXPECT_NEAR(v.y * k, fy[n], tol) << "node " << n;
+    EXPECT_NEAR(v.z * k, fz[n], tol) << "node " << n;
+  }
 }
 
 } // namespace ldem::testing

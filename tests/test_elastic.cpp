@@ -362,11 +362,9 @@ TEST(Simulation, FirstNodeBeyondNamesTheFirstNodePastTheLimit) {
 // The step loop gathers whole node rows in one fused pass, a missing link at a row's end
 // reading a zero pad; face, edge and end rows take other paths. On every kind of row its
 // forces must equal the reference per-bar loop's (internal_forces), which adds each bar's
-// force to its two nodes. Round-off: an intact bar's s = F / l is computed as k - k l0 / l,
-// whose error is about 2 eps k whatever the strain, so a node's force (14 links, lengths up to
-// L) differs by at most 14 * 2 eps k_max L; twice that for the force recovered from the
-// velocity. A term lost or doubled at a row end would be of order fmax (k e L, e ~ 1e-4 here),
-// some 1e10 times more.
+// force to its two nodes, to the round-off of the intact kernel's 1 / l
+// (expect_step_from_rest_gives_bar_forces). A term lost or doubled at a row end would be of
+// order fmax (k e L, e ~ 1e-4 here), some 1e10 times more.
 TEST(Elastic, StepForcesMatchThePerBarLoopOnEveryKindOfRow) {
   MaterialSpec m = unit_material();
   Simulation sim = make_sim(9, 4, 3, 1.0, m);
@@ -377,25 +375,7 @@ TEST(Elastic, StepForcesMatchThePerBarLoopOnEveryKindOfRow) {
     sim.set_displacement(n, {u(rng), u(rng), u(rng)});
     sim.set_half_step_velocity(n, {0, 0, 0});
   }
-  std::vector<double> fx, fy, fz;
-  sim.internal_forces(fx, fy, fz);
-  double fmax = 0.0;
-  for (index_t n = 0; n < lat.num_nodes(); ++n)
-    fmax = std::max({fmax, std::abs(fx[n]), std::abs(fy[n]), std::abs(fz[n])});
-  ASSERT_GT(fmax, 0.0);
-  double k_max = 0.0;
-  for (int f = 0; f < kFamilies; ++f)
-    k_max = std::max(k_max, sim.table().family(f).k);
-  const double tol = 4 * 14 * std::numeric_limits<double>::epsilon() * k_max * 1.0;
-  ASSERT_LT(tol, 1e-6 * fmax); // the check is far below a lost term
-  sim.step();
-  for (index_t n = 0; n < lat.num_nodes(); ++n) {
-    const Vec3 v = sim.half_step_velocity(n);
-    const double k = sim.mass(n) / sim.dt();
-    EXPECT_NEAR(v.x * k, fx[n], tol) << "node " << n;
-    EXPECT_NEAR(v.y * k, fy[n], tol) << "node " << n;
-    EXPECT_NEAR(v.z * k, fz[n], tol) << "node " << n;
-  }
+  testing::expect_step_from_rest_gives_bar_forces(sim);
 }
 
 // SPEC 2: with the lumped masses the stable step is about 0.54 L/c for a free 3-D box and
