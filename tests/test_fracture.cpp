@@ -599,8 +599,8 @@ TEST(Fracture, DamagedSpansInWholeVectorsMatchTheBarLaw) {
   pre.erase(std::unique(pre.begin(), pre.end()), pre.end());
   Simulation sim = make_sim(21, 2, 2, 1.0, m, {}, {}, pre, fields);
   ASSERT_TRUE(sim.table().per_bar());
-  // (The first step reports, and its kernels sum energies, which they do bar by bar: the
-  // step checked is the second, from the state set after the first.)
+  // (The first step reports, and a report step's general kernel, which sums energies, takes
+  // no windows: the step checked is the second, from the state set after the first.)
   sim.step();
   // Stretched along x to a third of e_p, and shaken: most bars in tension, some compressed.
   std::mt19937_64 rng(11);

@@ -368,9 +368,10 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
                      I = decltype(intact_c)::value;
       // Fewer than 8 bars (a damaged span) of a row of 8 or more, outside a report step: the
       // kernel takes the 8 bars from `o` on (or the row's last 8), a whole vector, and the
-      // others' forces are put back as the intact kernel wrote them. (Those bars are pristine
-      // and below their elastic limit, by the intact kernel's test or the fast path's bound,
-      // so no state of theirs changes; the slow path looks at the span's bars only.)
+      // others' forces are put back as they were (the intact kernel's; in a row whose other
+      // bars take the node pass, values that nothing reads). Those bars are pristine and below
+      // their elastic limit, by the intact kernel's test or the fast path's bound, so no state
+      // of theirs changes; the slow path looks at the span's bars only.
       const index_t want_o = o, want_count = count;
       double kept[8];
       const bool widened = !energies && count < 8 && n >= 8;
