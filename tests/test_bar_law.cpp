@@ -225,6 +225,29 @@ TEST(BilinearLaw, DissipatedEnergyIsTriangleOAP) {
   EXPECT_NEAR(b.dissipated_energy(0.3), 1.5e-4, 1e-18); // nothing more after rupture
 }
 
+// A broken bar's history stays at the strain where it broke (0.031 here, past e_r = 0.03):
+// further stretching changes no state, so the slow path skips the bars of an opening crack.
+// What the bar does is the same as with any history past e_r: no force in tension, EA e in
+// compression (2 x -0.004 = -0.008 N), the whole EA e_p e_r l0 / 2 = 1.5e-4 J dissipated.
+TEST(BilinearLaw, BrokenBarKeepsTheHistoryItBrokeAt) {
+  const TestBar& b = kLaw;
+  const double h = b.next_history(b.next_history(b.initial_history(), 0.02), 0.031);
+  EXPECT_EQ(h, 0.031);
+  for (double e : {0.031, 0.04, 0.5}) {
+    EXPECT_FALSE(b.law().changes(e, {h})) << e;
+    EXPECT_EQ(b.next_history(h, e), h) << e;
+    EXPECT_EQ(b.force(e, h), 0.0) << e;
+  }
+  EXPECT_NEAR(b.force(-0.004, h), -0.008, 1e-17);
+  EXPECT_NEAR(b.dissipated_energy(h), 1.5e-4, 1e-18);
+  EXPECT_EQ(b.state(h), BarState::Broken);
+  // A softening bar's history still follows the strain up to and across e_r.
+  EXPECT_TRUE(b.law().changes(0.025, {0.02}));
+  EXPECT_EQ(b.next_history(0.02, 0.025), 0.025);
+  EXPECT_TRUE(b.law().changes(0.03, {0.029}));
+  EXPECT_EQ(b.next_history(0.029, 0.03), 0.03);
+}
+
 // Work W = l0 int F de along load / unload / reload / compression paths, by the trapezoidal
 // rule, must equal stored + dissipated energy. F is piecewise linear along each monotone
 // leg with kinks at e_p and e_r, where the trapezoidal rule errs by at most

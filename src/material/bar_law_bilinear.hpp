@@ -1,7 +1,8 @@
 // The bilinear (Hillerborg-type) bar law of paper eqs. 7-17, `law = "bilinear"`.
 //
 // Strain e = (l - l0) / l0. The state is the history h, the largest strain the bar has
-// reached, never below e_p (so an intact bar has h = e_p). Force:
+// reached until it broke (the first strain at or past e_r), never below e_p (so an intact bar
+// has h = e_p). Force:
 //   e <= 0                : F = EA e                  (compression, undamaged stiffness)
 //   0 < e, max(h, e) = m  : F = EA e g(m),  g(m) = e_p (e_r - m) / ((e_r - e_p) m) in [0, 1]
 // i.e. linear up to e_p, linear softening to zero at e_r on the envelope, and unloading
@@ -55,7 +56,10 @@ struct BilinearLaw {
     return force_over_length(k, g, s) * g.l;
   }
 
-  bool changes(double e, State s) const noexcept { return e > s.h; }
+  // A broken bar's history stays where it broke: from e_r on the force (nothing in tension,
+  // EA e in compression), the dissipation and the state no longer depend on it, so the slow
+  // path has nothing to do for the bars of an opening crack.
+  bool changes(double e, State s) const noexcept { return (e > s.h) & (s.h < e_r); }
   // The history rises to e; the bar softens when it first passes e_p and breaks at e_r.
   template <class Emit> void update(double e, State& s, Emit&& emit) const {
     if (s.h <= e_p && e > e_p)
