@@ -39,7 +39,7 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
                double* energy, const std::uint8_t* __restrict code, bool first_end, bool last_end,
                double* __restrict changed) {
   const double inv_l0 = 1.0 / l0;
-  int past = 0; // an int, not a bool: GCC vectorises only arithmetic reductions
+  double past = 0.0; // a sum, not a bool: GCC vectorises only arithmetic reductions
   double sum = 0.0;
   // The row's pointers in locals: read through `r` in the loop, GCC 12 loads them anew for
   // every bar and gathers the rows lane by lane.
@@ -56,8 +56,10 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
   const std::int64_t e0 = first_end ? 0 : -1, e1 = last_end ? nn - 1 : -1;
   // bar(i): 1 if bar i's state changes, and with Energy its term of the sum; the loops name
   // only the reductions they have (GCC 12 vectorises neither with one that stays unused).
+  // (Its flag a double, 1 or 0: with an int among the doubles, GCC 12 vectorises by 16 ints, and
+  // a loop of n bars leaves up to 15 of them to scalar code.)
   struct Term {
-    int past;
+    double past;
     double energy;
   };
   const auto bar = [&](std::int64_t i) {
@@ -67,31 +69,28 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
     const typename Law::State s = Intact ? law.initial() : Law::read(st.data(), i);
     double si = law.force_over_length(PerBarK ? k_bar[i] : k_row, g, s);
     double w = i == e0 || i == e1 ? end_scale : 1.0;
-    int present = 1;
+    double present = 1.0;
     if constexpr (Coded) {
       // (Without a branch, which would keep GCC from vectorising the loop: an absent bar's s is
       // its finite force times 0.)
-      present = code[i] != 0;
+      present = code[i] != 0 ? 1.0 : 0.0;
       si *= code[i] * 0.25;
       w = 1.0; // (the area factor is in si)
     }
     sr[i] = si;
-    Term t{present * (law.changes(g.e, s) ? 1 : 0), 0.0};
+    Term t{law.changes(g.e, s) ? present : 0.0, 0.0};
     changed[i] = t.past;
     if constexpr (Energy)
       t.energy = law.elastic_energy(w * si, g, s);
     return t;
   };
   if constexpr (Energy) {
-    // (Both sums in doubles: GCC 12 vectorises no loop with an int and a double reduction.)
-    double passed = 0.0;
-#pragma omp simd reduction(+ : passed, sum)
+#pragma omp simd reduction(+ : past, sum)
     for (std::int64_t i = 0; i < nn; ++i) {
       const Term t = bar(i);
-      passed += t.past;
+      past += t.past;
       sum += t.energy;
     }
-    past = passed > 0.0;
   } else if (nn >= 8) {
     // Whole vectors of 8 bars, the last one ending at the row's end (over the one before it if
     // n is not a multiple of 8: those bars are taken again with the same bits, and `past` only
@@ -102,7 +101,7 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
     for (std::int64_t i = 0; i < whole; ++i)
       past += bar(i).past;
     if (whole < nn) {
-      int last = 0;
+      double last = 0.0;
 #pragma omp simd reduction(+ : last)
       for (std::int64_t l = 0; l < 8; ++l)
         last += bar(nn - 8 + l).past;
@@ -115,7 +114,7 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
   }
   if constexpr (Energy)
     *energy = sum;
-  return past > 0;
+  return past > 0.0;
 }
 
 #pragma GCC diagnostic push

@@ -72,24 +72,27 @@ bool run_may_touch(const Platen& p, Vec3 D, const Boundary::ContactRun& r, const
   const double c[3] = {p.point.x + D.x, p.point.y + D.y, p.point.z + D.z};
   const double margin = 1e-6 * L;
   const double x0 = r.i0 * L - c[0], y0 = r.y - c[1], z0 = r.z - c[2];
-  bool any = false;
+  // (A count in a double and an index of 64 bits: with a bool reduction, or an int among the
+  // doubles, GCC 12 leaves the loop scalar or vectorises it by 16.)
+  double hits = 0.0;
+  const auto n = static_cast<std::int64_t>(r.count);
   if (p.kind == Platen::Kind::Plane) {
-#pragma omp simd reduction(| : any)
-    for (index_t i = 0; i < r.count; ++i) {
+#pragma omp simd reduction(+ : hits)
+    for (std::int64_t i = 0; i < n; ++i) {
       const double rx = x0 + static_cast<double>(i) * L + ux[i], ry = y0 + uy[i], rz = z0 + uz[i];
-      any |= rx * a[0] + ry * a[1] + rz * a[2] < margin;
+      hits += rx * a[0] + ry * a[1] + rz * a[2] < margin ? 1.0 : 0.0;
     }
   } else {
     const double reach = (p.radius + margin) * (p.radius + margin);
-#pragma omp simd reduction(| : any)
-    for (index_t i = 0; i < r.count; ++i) {
+#pragma omp simd reduction(+ : hits)
+    for (std::int64_t i = 0; i < n; ++i) {
       const double rx = x0 + static_cast<double>(i) * L + ux[i], ry = y0 + uy[i], rz = z0 + uz[i];
       const double along = rx * a[0] + ry * a[1] + rz * a[2];
       const double qx = rx - along * a[0], qy = ry - along * a[1], qz = rz - along * a[2];
-      any |= qx * qx + qy * qy + qz * qz < reach;
+      hits += qx * qx + qy * qy + qz * qz < reach ? 1.0 : 0.0;
     }
   }
-  return any;
+  return hits > 0.0;
 }
 
 // The runs of stored nodes the platens test, and which slots hold a node of the body that this
