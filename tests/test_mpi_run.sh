@@ -165,7 +165,7 @@ compare "$T/arrays-1" "$T/arrays-2" "vtu_arrays: 2 processes against one"
 # Ctrl-C: mpirun passes it on to the processes (as SIGTERM), which agree on a step, write the
 # body's checkpoint and stop; resumed on another number of processes, the folder is the
 # uninterrupted run's. LONG_END: the run's end time, long enough that the signal arrives first.
-sed "s/^end = .*/end = ${LONG_END:-150.0e-6}/" "$SRC/cases/fgm_plate/graded_modulus_toughness.toml" >"$T/long.toml"
+sed "s/^end = .*/end = ${LONG_END:-500.0e-6}/" "$SRC/cases/fgm_plate/graded_modulus_toughness.toml" >"$T/long.toml"
 "$LDEM" run "$T/long.toml" --out "$T/long-1" --no-plot --threads 1 >/dev/null 2>&1
 "$MPIEXEC" -np 2 --oversubscribe "$LDEM" run "$T/long.toml" --out "$T/long-2" --no-plot \
   --threads 1 >/dev/null 2>"$T/err" &
