@@ -378,6 +378,52 @@ TEST(Elastic, StepForcesMatchThePerBarLoopOnEveryKindOfRow) {
   testing::expect_step_from_rest_gives_bar_forces(sim);
 }
 
+// A row whose E varies along it (BarRow::own_stiffness) takes, while its bars are pristine and
+// below the smallest of their elastic limits, the intact kernel with each bar's own k. Its
+// forces must equal the per-bar loop's as the other rows' do, with the same bound (every bar's
+// k at most its family's: E at most m.E here), and a report step's elastic energy must be
+// U = sum k (l - l0)^2 / 2 over the bars, to rounding (positive terms, 1e-12 relative: some
+// 10^3 ulps). A kernel that took one k for the row (the family's, or its first bar's) would be
+// off by up to 0.6 of a bar's force and some 0.1 of U, 10^9 times the tolerances.
+TEST(Elastic, RowsWhoseStiffnessVariesMatchThePerBarLoop) {
+  const MaterialSpec m = unit_material();
+  const Lattice lat(9, 4, 3, 1.0);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> g(0.4, 1.0), u(-1e-4, 1e-4);
+  BarFields fields;
+  for (index_t b = 0; b < lat.num_bars(); ++b)
+    fields.E.push_back(g(rng) * m.E);
+  Simulation sim = make_sim(9, 4, 3, 1.0, m, {}, {}, {}, fields);
+  ASSERT_TRUE(sim.table().per_bar());
+  std::vector<Vec3> at(lat.num_nodes());
+  for (Vec3& d : at)
+    d = {u(rng), u(rng), u(rng)};
+  const auto place = [&] {
+    for (index_t n = 0; n < lat.num_nodes(); ++n) {
+      sim.set_displacement(n, at[n]);
+      sim.set_half_step_velocity(n, {0, 0, 0});
+    }
+  };
+  place();
+  testing::expect_step_from_rest_gives_bar_forces(sim);
+  place();
+  double U = 0.0;
+  for (index_t b = 0; b < lat.num_bars(); ++b) {
+    const auto [na, nb] = lat.bar_nodes(b);
+    const FamilyInfo& fi = lat.family(lat.bar_address(b).family);
+    const Vec3 ua = sim.displacement(na), ub = sim.displacement(nb);
+    const Vec3 w{ub.x - ua.x, ub.y - ua.y, ub.z - ua.z};
+    const Vec3 d{fi.d0.x + w.x, fi.d0.y + w.y, fi.d0.z + w.z};
+    // l - l0 = (l^2 - l0^2) / (l + l0) = w . (w + 2 d0) / (l + l0): no cancellation.
+    const double dl =
+        (w.x * (w.x + 2 * fi.d0.x) + w.y * (w.y + 2 * fi.d0.y) + w.z * (w.z + 2 * fi.d0.z)) /
+        (std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z) + fi.l0);
+    U += 0.5 * sim.table().stiffness(lat, b) * dl * dl;
+  }
+  sim.step(true);
+  EXPECT_NEAR(sim.last_report().elastic, U, 1e-12 * U);
+}
+
 // SPEC 2: with the lumped masses the stable step is about 0.54 L/c for a free 3-D box and
 // about 0.62 L/c for a one-module-thick plate in plane strain; the paper's 0.6 L/c is thus
 // refused for the first and accepted for the second. The Lanczos estimate must also lie

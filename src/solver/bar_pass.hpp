@@ -138,12 +138,15 @@ bar_row_kernel(index_t n, const RowView& r, const typename Law::Row& constants,
 // [skip_lo, skip_hi): bars that another kernel computes afterwards (a damaged span): neither
 // tested, measured nor summed (their forces may be written, to be overwritten; the vectors
 // wholly inside it are not taken at all).
+// `k_bar`: a row whose E varies along it (BarRow::own_stiffness): each bar's own k, area factors
+// included (k and end_scale unused), s = k_i - k_i l0 / l, and into *energy the sum of k_i
+// (l - l0)^2 (the k inside the sum). e_lim is then the smallest of the row's elastic limits.
 template <bool Energy>
 [[gnu::always_inline]] inline bool
 intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, double e_lim,
                   double end_scale, double* energy, double& l2_max,
                   const std::uint8_t* __restrict code = nullptr, index_t skip_lo = 0,
-                  index_t skip_hi = 0) {
+                  index_t skip_hi = 0, const double* __restrict k_bar = nullptr) {
   // Slightly below the exact threshold, so that a bar at e_lim to within rounding is handed to
   // the general kernel, whose strain test is the reference.
   const double lp2 = l0 * l0 * (1.0 + e_lim) * (1.0 + e_lim) * (1.0 - 1e-12);
@@ -165,6 +168,19 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
                   dz = _mm512_add_pd(vz, uz);
     const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
     const __m512d y = inv_sqrt(l2);
+    if (k_bar) {
+      const __m512d kb = load(k_bar + i);
+      const __m512d s = _mm512_fnmadd_pd(_mm512_mul_pd(kb, _mm512_set1_pd(l0)), y, kb);
+      if constexpr (Tail)
+        _mm512_mask_storeu_pd(r.s + i, m, s);
+      else
+        _mm512_storeu_pd(r.s + i, s);
+      past |= _mm512_mask_cmp_pd_mask(m, l2, vlp2, _CMP_GT_OQ);
+      top = _mm512_mask_max_pd(top, m, top, l2);
+      if constexpr (Energy)
+        acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, m, kb);
+      return;
+    }
     __m512d s = _mm512_fnmadd_pd(vkl0, y, vk);
     // The lanes tested, measured and summed.
     __mmask8 keep = m;
@@ -229,13 +245,15 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
     const double l = std::sqrt(l2);
     const bool present = code == nullptr || code[i] != 0;
     const double f = code ? code[i] * 0.25 : 1.0;
-    r.s[i] = present ? (k - k * l0 / l) * f : 0.0;
+    const double kk = k_bar ? k_bar[i] : k;
+    r.s[i] = present ? (kk - kk * l0 / l) * f : 0.0;
     const bool kept = present && (i < skip_lo || i >= skip_hi);
     Term t{kept && l2 > lp2 ? 1 : 0, 0.0};
     if constexpr (Energy) { // as above
       const double dl =
           (ux * (ux + 2 * d0.x) + uy * (uy + 2 * d0.y) + uz * (uz + 2 * d0.z)) / (l + l0);
-      t.energy = kept ? (code ? f : i == 0 || i + 1 == n ? end_scale : 1.0) * dl * dl : 0.0;
+      const double w = k_bar ? k_bar[i] : code ? f : i == 0 || i + 1 == n ? end_scale : 1.0;
+      t.energy = kept ? w * dl * dl : 0.0;
     }
     return t;
   };
@@ -356,7 +374,8 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     double intact_sum = 0.0, law_sum = 0.0;
     // A row whose bars share their E (BarRow::stiffness): k of its inner bars, its first and
     // last bars' forces times `scale` afterwards, and the intact kernel while its bars are
-    // pristine; one whose E varies along it: each bar's k_bar (area factors included), by law.
+    // pristine; one whose E varies along it: each bar's k_bar (area factors included), in the
+    // intact kernel too while its bars are pristine, else by law.
     const bool own = row.own_stiffness();
     const double k = row.stiffness, scale = own ? 1.0 : row.end_factor / row.factor;
     // The general kernel, with per-bar constants (P) or the family's, and per-bar stiffness
@@ -415,9 +434,25 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     // The bars the slow path looks at: those the general kernel took.
     index_t slow_lo = 0, slow_hi = n;
     if (own) {
-      past = intact ? general(yes{}, yes{}, yes{}, 0, n) : general(yes{}, yes{}, no{}, 0, n);
+      // Pristine: the intact kernel with each bar's k, tested against the smallest of the row's
+      // elastic limits; if some bar may be past it, or the row is damaged, by the law.
+      double l2_max = kUnknown;
+      const double* kr = kb + b0;
+      const bool any_past =
+          !intact ||
+          (energies ? intact_row_kernel<true>(n, v, fi.d0, fi.l0, 0.0, row.elastic_limit, 1.0,
+                                              &intact_sum, l2_max, nullptr, 0, 0, kr)
+                    : intact_row_kernel<false>(n, v, fi.d0, fi.l0, 0.0, row.elastic_limit, 1.0,
+                                               nullptr, l2_max, nullptr, 0, 0, kr));
+      if (any_past) {
+        past = intact ? general(yes{}, yes{}, yes{}, 0, n) : general(yes{}, yes{}, no{}, 0, n);
+      } else {
+        past = false;
+        slow_hi = 0;
+      }
+      // U = (sum of k_i (l - l0)^2) / 2 of the intact kernel, or the law's.
       if (energies)
-        core.energy_rows_u[r] = law_sum;
+        core.energy_rows_u[r] = any_past ? law_sum : 0.5 * intact_sum;
     } else {
       // By the law (its state read), with per-bar constants or the family's.
       const auto by_law = [&](index_t o, index_t count) {

@@ -67,7 +67,8 @@ struct RowKind {
 // the vector of 8 that holds the first present bar to the last present bar; [0, ni) in a box).
 // `stiffness`: the k = E A / l0 of its inner bars (area factor included) when all its bars
 // share their E (BarTable::row_stiffness), and 0 when E varies along the row: its bars then take
-// their own k (BarTable::k_bar) and never the intact fast path. `elastic_limit`: the smallest
+// their own k (BarTable::k_bar), in the bar pass's intact kernel while pristine, and never the
+// fast path at the nodes (whose links carry one k per row kind). `elastic_limit`: the smallest
 // of its bars' elastic limits (the intact kernel's threshold).
 struct BarRow {
   int family;
