@@ -168,20 +168,9 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
                   dz = _mm512_add_pd(vz, uz);
     const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
     const __m512d y = inv_sqrt(l2);
-    if (k_bar) {
-      const __m512d kb = load(k_bar + i);
-      const __m512d s = _mm512_fnmadd_pd(_mm512_mul_pd(kb, _mm512_set1_pd(l0)), y, kb);
-      if constexpr (Tail)
-        _mm512_mask_storeu_pd(r.s + i, m, s);
-      else
-        _mm512_storeu_pd(r.s + i, s);
-      past |= _mm512_mask_cmp_pd_mask(m, l2, vlp2, _CMP_GT_OQ);
-      top = _mm512_mask_max_pd(top, m, top, l2);
-      if constexpr (Energy)
-        acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, m, kb);
-      return;
-    }
-    __m512d s = _mm512_fnmadd_pd(vkl0, y, vk);
+    // Each bar's k with k_bar (whose rows have no codes: their area factors are in it).
+    const __m512d kb = k_bar ? load(k_bar + i) : vk;
+    __m512d s = _mm512_fnmadd_pd(k_bar ? _mm512_mul_pd(kb, _mm512_set1_pd(l0)) : vkl0, y, kb);
     // The lanes tested, measured and summed.
     __mmask8 keep = m;
     if (i < skip_hi && i + 8 > skip_lo)
@@ -215,7 +204,8 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
         ends |= 1;
       if (n - 1 - i < 8)
         ends |= static_cast<__mmask8>(1u << (n - 1 - i));
-      acc = add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, keep, ends, end_scale);
+      acc = k_bar ? add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, keep, kb)
+                  : add_intact_energy(acc, ux, uy, uz, d0, l2, y, l0, keep, ends, end_scale);
     }
   };
   // (Vectors wholly inside [skip_lo, skip_hi) are left to the other kernel: no store.)
@@ -436,7 +426,7 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     if (own) {
       // Pristine: the intact kernel with each bar's k, tested against the smallest of the row's
       // elastic limits; if some bar may be past it, or the row is damaged, by the law.
-      double l2_max = kUnknown;
+      double l2_max = kUnknown; // (not read: such rows never take the fast path)
       const double* kr = kb + b0;
       const bool any_past =
           !intact ||
