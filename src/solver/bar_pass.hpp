@@ -156,14 +156,23 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
   const __m512d vlp2 = _mm512_set1_pd(lp2);
   __m512d acc = _mm512_setzero_pd(), top = _mm512_setzero_pd();
   __mmask8 past = 0;
+  // The row's pointers in locals: read through `r` in the loop, GCC 12 reloaded them from the
+  // caller's frame for every vector.
+  const double* const uax = r.uax;
+  const double* const uay = r.uay;
+  const double* const uaz = r.uaz;
+  const double* const ubx = r.ubx;
+  const double* const uby = r.uby;
+  const double* const ubz = r.ubz;
+  double* const sr = r.s;
   // Whole vectors with plain loads and stores, the row's tail (n not a multiple of 8) masked.
   const auto vector = [&]<bool Tail>(index_t i, __mmask8 m) {
     const auto load = [m](const double* p) {
       return Tail ? _mm512_maskz_loadu_pd(m, p) : _mm512_loadu_pd(p);
     };
-    const __m512d ux = _mm512_sub_pd(load(r.ubx + i), load(r.uax + i));
-    const __m512d uy = _mm512_sub_pd(load(r.uby + i), load(r.uay + i));
-    const __m512d uz = _mm512_sub_pd(load(r.ubz + i), load(r.uaz + i));
+    const __m512d ux = _mm512_sub_pd(load(ubx + i), load(uax + i));
+    const __m512d uy = _mm512_sub_pd(load(uby + i), load(uay + i));
+    const __m512d uz = _mm512_sub_pd(load(ubz + i), load(uaz + i));
     const __m512d dx = _mm512_add_pd(vx, ux), dy = _mm512_add_pd(vy, uy),
                   dz = _mm512_add_pd(vz, uz);
     const __m512d l2 = _mm512_fmadd_pd(dx, dx, _mm512_fmadd_pd(dy, dy, _mm512_mul_pd(dz, dz)));
@@ -179,7 +188,7 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
       __mmask8 present = 0;
       const __m512d f = code_factors(code + i, Tail ? n - i : 8, present);
       s = _mm512_maskz_mul_pd(present, s, f);
-      _mm512_mask_storeu_pd(r.s + i, m, s);
+      _mm512_mask_storeu_pd(sr + i, m, s);
       past |= _mm512_mask_cmp_pd_mask(keep & present, l2, vlp2, _CMP_GT_OQ);
       top = _mm512_mask_max_pd(top, keep & present, top, l2);
       if constexpr (Energy)
@@ -187,9 +196,9 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
       return;
     }
     if constexpr (Tail)
-      _mm512_mask_storeu_pd(r.s + i, m, s);
+      _mm512_mask_storeu_pd(sr + i, m, s);
     else
-      _mm512_storeu_pd(r.s + i, s);
+      _mm512_storeu_pd(sr + i, s);
     if (keep == 0xFF) {
       past |= _mm512_cmp_pd_mask(l2, vlp2, _CMP_GT_OQ);
       top = _mm512_max_pd(top, l2);
@@ -369,9 +378,10 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     const bool own = row.own_stiffness();
     const double k = row.stiffness, scale = own ? 1.0 : row.end_factor / row.factor;
     // The general kernel, with per-bar constants (P) or the family's, and per-bar stiffness
-    // (K) or k, on the row's bars [o, o + count).
+    // (K) or k, on the row's bars [o, o + count). (Inlined where it is called: GCC 12 made it
+    // a call of its own, once or twice per damaged row and step; bench/README.md.)
     const auto general = [&](auto per_bar_c, auto per_bar_k_c, auto intact_c, index_t o,
-                             index_t count) {
+                             index_t count) __attribute__((always_inline)) {
       constexpr bool P = decltype(per_bar_c)::value, K = decltype(per_bar_k_c)::value,
                      I = decltype(intact_c)::value;
       // Fewer than 8 bars (a damaged span) of a row of 8 or more, outside a report step: the
