@@ -158,12 +158,8 @@ intact_row_kernel(index_t n, const RowView& r, Vec3 d0, double l0, double k, dou
   __mmask8 past = 0;
   // The row's pointers in locals: read through `r` in the loop, GCC 12 reloaded them from the
   // caller's frame for every vector.
-  const double* const uax = r.uax;
-  const double* const uay = r.uay;
-  const double* const uaz = r.uaz;
-  const double* const ubx = r.ubx;
-  const double* const uby = r.uby;
-  const double* const ubz = r.ubz;
+  const double *const uax = r.uax, *const uay = r.uay, *const uaz = r.uaz;
+  const double *const ubx = r.ubx, *const uby = r.uby, *const ubz = r.ubz;
   double* const sr = r.s;
   // Whole vectors with plain loads and stores, the row's tail (n not a multiple of 8) masked.
   const auto vector = [&]<bool Tail>(index_t i, __mmask8 m) {
