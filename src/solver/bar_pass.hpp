@@ -374,10 +374,10 @@ void bar_rows(SimulationCore& core, std::size_t line, double* s_plane, bool ener
     const bool own = row.own_stiffness();
     const double k = row.stiffness, scale = own ? 1.0 : row.end_factor / row.factor;
     // The general kernel, with per-bar constants (P) or the family's, and per-bar stiffness
-    // (K) or k, on the row's bars [o, o + count). (Inlined where it is called: GCC 12 made it
-    // a call of its own, once or twice per damaged row and step; bench/README.md.)
+    // (K) or k, on the row's bars [o, o + count). (A call of its own, as GCC 12 makes it:
+    // inlined into bar_rows, it halved the FGM plate's rate once bars break; bench/README.md.)
     const auto general = [&](auto per_bar_c, auto per_bar_k_c, auto intact_c, index_t o,
-                             index_t count) __attribute__((always_inline)) {
+                             index_t count) {
       constexpr bool P = decltype(per_bar_c)::value, K = decltype(per_bar_k_c)::value,
                      I = decltype(intact_c)::value;
       // Fewer than 8 bars (a damaged span) of a row of 8 or more, outside a report step: the
