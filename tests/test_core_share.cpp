@@ -65,8 +65,9 @@ TEST(CoreShare, EachRunTakesItsShareOfTheCores) {
   EXPECT_EQ(core_share(4, {}, 9), 4);          // unlisted and alone
 }
 
-// The walk's slabs (util/parallel.hpp, balance_ranges): ranges of planes whose costs differ
-// move towards equal times, and ranges of equal cost stay where they are.
+// The walk's slabs (util/parallel.hpp, balance_ranges): ranges of planes placed by the planes'
+// costs, so that their times are even to within a plane; ranges of equal cost stay where they
+// are.
 namespace {
 // Each range's time: the sum of its planes' costs.
 std::vector<double> range_times(const std::vector<std::int64_t>& start,
@@ -80,55 +81,78 @@ std::vector<double> range_times(const std::vector<std::int64_t>& start,
 double longest_of(const std::vector<double>& t) {
   return *std::max_element(t.begin(), t.end());
 }
+std::vector<std::int64_t> even_split(std::size_t ranges, std::int64_t items) {
+  std::vector<std::int64_t> s(ranges + 1);
+  for (std::size_t u = 0; u <= ranges; ++u)
+    s[u] = static_cast<std::int64_t>(u) * items / static_cast<std::int64_t>(ranges);
+  return s;
+}
+// The best split's longest range, by trying every split of 61 items (2 or 3 ranges).
+double best_longest(std::size_t ranges, const std::vector<double>& cost) {
+  double best = 1e300;
+  for (std::int64_t b = 1; b < 61; ++b) {
+    if (ranges == 2)
+      best = std::min(best, longest_of(range_times({0, b, 61}, cost)));
+    else
+      for (std::int64_t c = b + 1; c < 61; ++c)
+        best = std::min(best, longest_of(range_times({0, b, c, 61}, cost)));
+  }
+  return best;
+}
 } // namespace
 
 TEST(BalanceRanges, EqualCostsStayAndNoiseBelowTheMarginMovesNothing) {
+  // 61 planes of cost 1 in 2 ranges of 30 and 31: as even as whole planes allow.
   std::vector<std::int64_t> start{0, 30, 61};
-  const std::vector<double> equal{30.0, 31.0}; // one per plane: balanced as well as it can be
-  balance_ranges(start, equal.data());
+  EXPECT_FALSE(balance_ranges(start, std::vector<double>(61, 1.0)));
   EXPECT_EQ(start[1], 30);
-  // 3 % apart: less than 1.2 planes' time (1.2 / 30 = 4 %), noise rather than a cost.
-  const std::vector<double> noisy{1.03, 1.0};
-  balance_ranges(start, noisy.data());
-  EXPECT_EQ(start[1], 30);
+  // The upper range's 31 planes each dearer by d: moving one plane down gives the ranges
+  // 31 + d and 30 (1 + d), where the upper one alone was 31 (1 + d). With d = 0.4 / 31 (a
+  // clock's noise) the gain, 31 (1 + d) - (31 + d) = 0.39, is under the margin of half a plane's
+  // average cost (0.5 (61 + 0.4) / 61 = 0.50): nothing moves. With d = 1.5 / 31 (a cost) the
+  // gain, 31 (1 + d) - 30 (1 + d) = 1.05, is past it (0.51): the boundary moves up by one plane.
+  for (const double extra : {0.4, 1.5}) {
+    std::vector<double> cost(61, 1.0);
+    for (std::size_t k = 30; k < 61; ++k)
+      cost[k] += extra / 31.0;
+    start = {0, 30, 61};
+    EXPECT_EQ(balance_ranges(start, cost), extra > 1.0) << extra;
+    EXPECT_EQ(start[1], extra > 1.0 ? 31 : 30) << extra;
+  }
 }
 
-TEST(BalanceRanges, CostlyPlanesMoveTheBoundaryUntilTheTimesAreEven) {
+TEST(BalanceRanges, CostlyPlanesPlaceTheBoundariesAtOnce) {
   // 61 planes of cost 1 but for a damaged layer, planes 20 to 27 at cost 6 (a crack's planes);
-  // two and three threads. The best split's longest range is found by trying every split; the
-  // rule moves one plane at a time and stops within a margin of 1.2 planes' time of even, so
-  // after enough rounds the longest range is at most the best one's plus two planes of the
-  // costliest kind (6 each), and on the way no range has fewer than 2 planes.
+  // two and three threads, from the even split. One call places each boundary at the plane edge
+  // nearest its share of the total, so every range is within one plane's cost of that share:
+  // the longest range is at most the best split's (found by trying every split) plus the
+  // costliest plane (6). A second call on the same costs moves nothing.
   std::vector<double> cost(61, 1.0);
   for (std::size_t k = 20; k < 28; ++k)
     cost[k] = 6.0;
   for (const std::size_t threads : {2u, 3u}) {
-    std::vector<std::int64_t> start(threads + 1);
-    for (std::size_t u = 0; u <= threads; ++u)
-      start[u] = static_cast<std::int64_t>(u * 61 / threads);
-    for (int round = 0; round < 200; ++round) {
-      const std::vector<double> t = range_times(start, cost);
-      balance_ranges(start, t.data());
-      for (std::size_t u = 0; u < threads; ++u)
-        ASSERT_GE(start[u + 1] - start[u], 2) << threads << " threads, round " << round;
-    }
-    const std::vector<double> t = range_times(start, cost);
-    const double longest = longest_of(t);
-    double best = 1e300;
-    if (threads == 2) {
-      for (std::int64_t b = 1; b < 61; ++b)
-        best = std::min(best, longest_of(range_times({0, b, 61}, cost)));
-    } else {
-      for (std::int64_t b = 1; b < 61; ++b)
-        for (std::int64_t c = b + 1; c < 61; ++c)
-          best = std::min(best, longest_of(range_times({0, b, c, 61}, cost)));
-    }
-    EXPECT_LE(longest, best + 2 * 6.0) << threads << " threads";
-    // And clearly better than the even split's.
-    std::vector<std::int64_t> even(threads + 1);
-    for (std::size_t u = 0; u <= threads; ++u)
-      even[u] = static_cast<std::int64_t>(u * 61 / threads);
-    const std::vector<double> te = range_times(even, cost);
-    EXPECT_LT(longest, longest_of(te)) << threads << " threads";
+    std::vector<std::int64_t> start = even_split(threads, 61);
+    const double even_longest = longest_of(range_times(start, cost));
+    EXPECT_TRUE(balance_ranges(start, cost)) << threads << " threads";
+    for (std::size_t u = 0; u < threads; ++u)
+      EXPECT_GE(start[u + 1] - start[u], 2) << threads << " threads";
+    const double longest = longest_of(range_times(start, cost));
+    EXPECT_LE(longest, best_longest(threads, cost) + 6.0) << threads << " threads";
+    EXPECT_LT(longest, even_longest) << threads << " threads";
+    const std::vector<std::int64_t> placed = start;
+    EXPECT_FALSE(balance_ranges(start, cost)) << threads << " threads";
+    EXPECT_EQ(start, placed) << threads << " threads";
   }
+}
+
+TEST(BalanceRanges, NoRangeGetsFewerThanTheLeastItems) {
+  // 12 planes of cost 1 but plane 0 at 10 (total 21), 3 ranges from the even split (13, 4 and 4).
+  // The first boundary's share, 7, lies inside plane 0, whose nearer edge, 1, would leave range 0
+  // one plane: it keeps 2 (the walk's slabs need a plane below their top one), costing 11. The
+  // second's share, 14, is edge 5 (10 + 4). Longest 11 against 13: moved.
+  std::vector<double> cost(12, 1.0);
+  cost[0] = 10.0;
+  std::vector<std::int64_t> start = even_split(3, 12);
+  EXPECT_TRUE(balance_ranges(start, cost));
+  EXPECT_EQ(start, (std::vector<std::int64_t>{0, 2, 5, 12}));
 }

@@ -163,10 +163,10 @@ struct SimulationCore {
   std::vector<std::vector<double>> line_stores;
   std::int64_t block_lines = 1; // lines per block of the walk (advance_rows)
   // The walk's slabs of k-planes (advance_rows): thread t takes the planes [slab_start[t],
-  // slab_start[t + 1]), moved by balance_slabs towards equal times; each thread's time in the
-  // walk's steps since the last move (at thread_busy[8 t], a cache line each) and the steps.
+  // slab_start[t + 1]), placed by balance_slabs for equal times; each plane's time in the walk
+  // over the timed steps since the last placing (one step in 4), and the steps since then.
   std::vector<std::int64_t> slab_start;
-  std::vector<double> thread_busy;
+  std::vector<double> plane_busy;
   int busy_steps = 0;
   std::vector<std::vector<Event>> thread_events;
 

@@ -29,26 +29,28 @@ void move_bar_line(const SimulationCore& core, std::size_t l, double* plane, dou
 }
 
 // The threads' slabs of k-planes (SimulationCore::slab_start) for `nt` threads and `nplanes`
-// planes: even at first (and whenever the threads or planes change), then balanced every 16
-// steps by the threads' times in the walk (balance_ranges: a crack or a damaged layer makes
-// some planes cost several times others, and with an even split the other threads would wait
-// for the slowest at each step's end). Which thread takes a plane changes no result
-// (advance_rows).
+// planes: even at first (and whenever the threads or planes change), then placed every 16 steps
+// by the planes' times in the walk (balance_ranges), measured on one step in 4: a crack or a
+// damaged layer makes some planes cost several times others, and with an even split the other
+// threads would wait for the slowest at each step's end. The split goes at once where the
+// times say, so that it keeps up with a crack that spreads over many planes. Which thread
+// takes a plane changes no result (advance_rows).
 inline void balance_slabs(SimulationCore& core, std::int64_t nt, std::int64_t nplanes) {
   std::vector<std::int64_t>& s = core.slab_start;
   const auto n = static_cast<std::size_t>(nt);
-  if (s.size() != n + 1 || s.back() != nplanes || core.thread_busy.size() != 8 * n) {
+  if (s.size() != n + 1 || s.back() != nplanes ||
+      core.plane_busy.size() != static_cast<std::size_t>(nplanes)) {
     s.resize(n + 1);
     for (std::int64_t u = 0; u <= nt; ++u)
       s[static_cast<std::size_t>(u)] = u * nplanes / nt;
-    core.thread_busy.assign(8 * n, 0.0);
+    core.plane_busy.assign(static_cast<std::size_t>(nplanes), 0.0);
     core.busy_steps = 0;
     return;
   }
   if (++core.busy_steps < 16)
     return;
-  balance_ranges(s, core.thread_busy.data(), 8);
-  core.thread_busy.assign(8 * n, 0.0);
+  balance_ranges(s, core.plane_busy);
+  std::fill(core.plane_busy.begin(), core.plane_busy.end(), 0.0);
   core.busy_steps = 0;
 }
 
@@ -64,8 +66,8 @@ inline void balance_slabs(SimulationCore& core, std::int64_t nt, std::int64_t np
 // `carry`), and what the neighbouring thread owns: the top plane of the slab below, or the
 // last line of the j range below. Each thread computes those first, before the one barrier.
 // Every bar line is computed once per step, whatever the threads and blocks, so they change
-// which thread does a row, never how the row is computed. The slabs are balanced by the
-// threads' times (balance_slabs).
+// which thread does a row, never how the row is computed. The slabs are placed by the planes'
+// times (balance_slabs).
 template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(SimulationCore& core) {
   const auto nplanes = static_cast<std::int64_t>(core.layout.planes.size());
   const auto nlines = static_cast<std::int64_t>(core.lat.ny()) + 1; // lines per plane
@@ -74,7 +76,6 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
     balance_slabs(core, core.threads, nplanes);
 #pragma omp parallel num_threads(core.threads) if (parallel)
   {
-    const double started = omp_get_wtime();
     const std::int64_t nt = omp_get_num_threads(), t = omp_get_thread_num();
     const bool slabs = nplanes >= 4 * nt;
     auto first = [nt](std::int64_t n, std::int64_t u) { return u * n / nt; };
@@ -87,6 +88,12 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
     const std::int64_t k1 = balanced ? core.slab_start[static_cast<std::size_t>(t) + 1]
                             : slabs  ? first(nplanes, t + 1)
                                      : nplanes;
+    // A step whose planes' times are measured (balance_slabs): each plane's share of the walk
+    // into plane_busy, its top plane's bars before the barrier included. (One step in 4: on
+    // some machines the clock is a system call.)
+    const bool timed = balanced && nt > 1 && core.busy_steps % 4 == 0 &&
+                       core.plane_busy.size() == static_cast<std::size_t>(nplanes);
+    double clock = timed ? omp_get_wtime() : 0.0;
     const std::int64_t j0 = slabs ? 0 : first(nlines, t);
     const std::int64_t j1 = slabs ? nlines : first(nlines, t + 1);
     const auto line = [&](std::int64_t j, std::int64_t k) {
@@ -120,9 +127,13 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
     std::int64_t below = t - 1;
     while (below > 0 && first(nlines, below) > j0 - 1)
       --below;
-    const double edges_done = omp_get_wtime();
+    if (timed && box) {
+      const double now = omp_get_wtime();
+      core.plane_busy[static_cast<std::size_t>(k1 - 1)] += now - clock;
+    }
 #pragma omp barrier
-    const double resumed = omp_get_wtime();
+    if (timed)
+      clock = omp_get_wtime();
     for (std::int64_t jb = j0; box && jb < j1; jb += core.block_lines) {
       const std::int64_t je = std::min<std::int64_t>(jb + core.block_lines, j1);
       for (std::int64_t k = k0; k < k1; ++k) {
@@ -148,12 +159,13 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
         }
         for (std::int64_t j = jb; j < je; ++j)
           node_rows_range<Damped, Loads, Report>(core, line(j, k), s_plane, s_below);
+        if (timed) {
+          const double now = omp_get_wtime();
+          core.plane_busy[static_cast<std::size_t>(k)] += now - clock;
+          clock = now;
+        }
       }
     }
-    // The thread's time in this walk but for the barrier's wait.
-    if (balanced)
-      core.thread_busy[8 * static_cast<std::size_t>(t)] +=
-          (edges_done - started) + (omp_get_wtime() - resumed);
   }
 }
 

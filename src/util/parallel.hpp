@@ -1,6 +1,7 @@
 // How small a loop runs on one thread, and how ranges of items are shared among threads.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -10,23 +11,51 @@ namespace ldem {
 // on a busy machine); loops over fewer items run on the calling thread.
 inline constexpr std::int64_t kParallelMinItems = 20000;
 
-// Contiguous ranges of items, one per thread (range u is [start[u], start[u + 1])), moved
-// towards equal times: at each boundary where the range on one side took longer than the other
-// (busy[stride * u], its thread's time over the same steps) by more than 1.2 times what one of
-// its items took on average, the slower range gives its item at the boundary to the other. One
-// item at a time, and only past that margin, so that ranges of equal cost stay where they are
-// and noise does not move them back and forth; no range gets fewer than `min_items` items this
-// way.
-inline void balance_ranges(std::vector<std::int64_t>& start, const double* busy,
-                           std::size_t stride = 1, std::int64_t min_items = 2) {
-  for (std::size_t u = 1; u + 1 < start.size(); ++u) {
-    const double a = busy[stride * (u - 1)], b = busy[stride * u];
-    const std::int64_t na = start[u] - start[u - 1], nb = start[u + 1] - start[u];
-    if (a > b && na > min_items && a - b > 1.2 * a / static_cast<double>(na))
-      --start[u];
-    else if (b > a && nb > min_items && b - a > 1.2 * b / static_cast<double>(nb))
-      ++start[u];
+// Contiguous ranges of items, one per thread (range u is [start[u], start[u + 1])), placed so
+// that their costs are as even as whole items allow: cost[i] is what item i took over the
+// same steps (its plane's time in the walk, whichever thread took it). Each boundary goes to
+// the item edge nearest its share of the total (u / n of it), which leaves each range within
+// the largest item's cost of the best split's longest range; no range gets fewer than
+// `min_items` items (the caller has at least that many per range). The new ranges are taken
+// only if their longest is shorter than the present ranges' longest, on the same costs, by
+// more than half an item's average cost: ranges of equal cost stay where they are, and noise
+// does not move them back and forth. Returns whether they moved.
+inline bool balance_ranges(std::vector<std::int64_t>& start, const std::vector<double>& cost,
+                           std::int64_t min_items = 2) {
+  const auto n = static_cast<std::int64_t>(cost.size());
+  const std::size_t ranges = start.size() - 1;
+  std::vector<double> prefix(cost.size() + 1, 0.0);
+  for (std::size_t i = 0; i < cost.size(); ++i)
+    prefix[i + 1] = prefix[i] + cost[i];
+  const double total = prefix.back();
+  if (!(total > 0.0) || ranges < 2)
+    return false;
+  const auto longest = [&](const std::vector<std::int64_t>& s) {
+    double most = 0.0;
+    for (std::size_t u = 0; u < ranges; ++u)
+      most = std::max(most, prefix[static_cast<std::size_t>(s[u + 1])] -
+                                prefix[static_cast<std::size_t>(s[u])]);
+    return most;
+  };
+  std::vector<std::int64_t> placed(start.size());
+  placed[0] = 0;
+  placed[ranges] = n;
+  for (std::size_t u = 1; u < ranges; ++u) {
+    const double target = total * static_cast<double>(u) / static_cast<double>(ranges);
+    // The first edge at or past the target, or the one before it if nearer.
+    auto k = static_cast<std::int64_t>(std::lower_bound(prefix.begin(), prefix.end(), target) -
+                                       prefix.begin());
+    if (k > 0 && target - prefix[static_cast<std::size_t>(k - 1)] <
+                     prefix[static_cast<std::size_t>(k)] - target)
+      --k;
+    const std::int64_t lo = placed[u - 1] + min_items,
+                       hi = n - min_items * static_cast<std::int64_t>(ranges - u);
+    placed[u] = std::clamp(k, lo, std::max(lo, hi));
   }
+  if (!(longest(placed) < longest(start) - 0.5 * total / static_cast<double>(n)))
+    return false;
+  start = placed;
+  return true;
 }
 
 } // namespace ldem
