@@ -92,15 +92,24 @@ std::vector<DofMask> build_boundary(SimulationCore& core) {
         kept += 3 * std::size_t{rows[row_of(n)].length};
       }
   bc.imposed_force.assign(kept, 0.0);
+  std::vector<std::uint8_t> listed(rows.size(), 0); // (a condition's rows listed so far)
   for (const ImposedVelocity& v : core.cond.velocities) {
     bc.imposed_force_at.emplace_back();
     bc.imposed_node_row.emplace_back();
+    bc.imposed_rows.emplace_back();
     for (index_t n : v.set.nodes) {
       const NodeRow& row = rows[row_of(n)];
       bc.imposed_force_at.back().push_back(
           {static_cast<std::size_t>(bc.imposed_row[row_of(n)]) + (n - row.first), row.length});
-      bc.imposed_node_row.back().push_back(static_cast<std::uint32_t>(row_of(n)));
+      const auto r = static_cast<std::uint32_t>(row_of(n));
+      bc.imposed_node_row.back().push_back(r);
+      if (!listed[r]) {
+        listed[r] = 1;
+        bc.imposed_rows.back().push_back(r);
+      }
     }
+    for (const std::uint32_t r : bc.imposed_rows.back())
+      listed[r] = 0;
   }
   bc.imposed_motion.assign(rows.size(), 0.0);
   bc.condition_motion.assign(rows.size(), 0.0);
@@ -171,17 +180,24 @@ void apply_velocities(SimulationCore& core, double t, bool report) {
                                : 0.0)) *
         factor_of(core.bc.velocity_factors, c);
     const double target[3] = {s * iv.velocity.x, s * iv.velocity.y, s * iv.velocity.z};
-    for (std::size_t q = 0; q < iv.set.nodes.size(); ++q) {
-      const std::size_t p = core.bc.velocity_slots[c][q];
+    const std::vector<std::size_t>& slots = core.bc.velocity_slots[c];
+    const auto& force_at = core.bc.imposed_force_at[c];
+    const std::vector<Vec3>& v_old = core.bc.imposed_v_old[c];
+    const std::vector<std::uint32_t>& node_row = core.bc.imposed_node_row[c];
+    // The largest squared motion of the nodes of the row at hand (a set's nodes come row by
+    // row), kept here and put into condition_motion when the row changes.
+    std::uint32_t row = node_row.empty() ? 0 : node_row[0];
+    double row_moved2 = 0.0;
+    for (std::size_t q = 0; q < slots.size(); ++q) {
+      const std::size_t p = slots[q];
       // The node's bar forces at u_n, as the node pass gathered them.
-      const auto [fi, len] = core.bc.imposed_force_at[c][q];
+      const auto [fi, len] = force_at[q];
       const Vec3 f{core.bc.imposed_force[fi], core.bc.imposed_force[fi + len],
                    core.bc.imposed_force[fi + 2 * len]};
       const double fint[3] = {f.x + (core.px.empty() ? 0.0 : core.px[p]),
                               f.y + (core.py.empty() ? 0.0 : core.py[p]),
                               f.z + (core.pz.empty() ? 0.0 : core.pz[p])};
-      const double vold[3] = {core.bc.imposed_v_old[c][q].x, core.bc.imposed_v_old[c][q].y,
-                              core.bc.imposed_v_old[c][q].z};
+      const double vold[3] = {v_old[q].x, v_old[q].y, v_old[q].z};
       double* u[3] = {&core.ux[p], &core.uy[p], &core.uz[p]};
       double* w[3] = {&core.wx[p], &core.wy[p], &core.wz[p]};
       double moved2 = 0.0;
@@ -208,12 +224,21 @@ void apply_velocities(SimulationCore& core, double t, bool report) {
         const double moved = *w[d] - *u[d];
         moved2 += moved * moved;
       }
-      double& row = core.bc.condition_motion[core.bc.imposed_node_row[c][q]];
-      row = std::max(row, moved2);
+      if (node_row[q] != row) {
+        double& m = core.bc.condition_motion[row];
+        m = std::max(m, row_moved2);
+        row = node_row[q];
+        row_moved2 = 0.0;
+      }
+      row_moved2 = std::max(row_moved2, moved2);
+    }
+    if (!node_row.empty()) {
+      double& m = core.bc.condition_motion[row];
+      m = std::max(m, row_moved2);
     }
     // Conditions may share a node (one imposes x, another y): each adds its rows' largest
     // squared motion, so a row's sum bounds the squared motion of any of its nodes.
-    for (const std::uint32_t r : core.bc.imposed_node_row[c]) {
+    for (const std::uint32_t r : core.bc.imposed_rows[c]) {
       core.bc.imposed_motion[r] += core.bc.condition_motion[r];
       core.bc.condition_motion[r] = 0.0;
     }
@@ -221,14 +246,14 @@ void apply_velocities(SimulationCore& core, double t, bool report) {
   // A node's motion is that of its free DOF (the node pass measured it) and of its imposed
   // ones, squares added: the row's largest is at most the root of the sum of the two largest.
   for (std::size_t c = 0; c < core.cond.velocities.size(); ++c)
-    for (const std::uint32_t r : core.bc.imposed_node_row[c])
+    for (const std::uint32_t r : core.bc.imposed_rows[c])
       if (core.bc.imposed_motion[r] >= 0.0) {
         core.node_row_motion[r] = std::sqrt(core.node_row_motion[r] * core.node_row_motion[r] +
                                             core.bc.imposed_motion[r]);
         core.bc.imposed_motion[r] = -1.0; // done
       }
   for (std::size_t c = 0; c < core.cond.velocities.size(); ++c)
-    for (const std::uint32_t r : core.bc.imposed_node_row[c])
+    for (const std::uint32_t r : core.bc.imposed_rows[c])
       core.bc.imposed_motion[r] = 0.0;
   core.bc.work = work;
   core.bc.work_half = work_half;

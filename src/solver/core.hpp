@@ -63,11 +63,11 @@ struct Boundary {
   std::vector<std::int64_t> imposed_row;
   std::vector<double> imposed_force;
   std::vector<std::vector<std::pair<std::size_t, index_t>>> imposed_force_at;
-  // The node row of each imposed-velocity node; per node row, the largest squared motion of
-  // the DOF one condition imposes on its nodes in this step (condition_motion, scratch), and
-  // those summed over the conditions (imposed_motion; apply_velocities adds it to the row's
-  // motion).
-  std::vector<std::vector<std::uint32_t>> imposed_node_row;
+  // The node row of each imposed-velocity node, and each condition's rows once each (in the
+  // order of their first node); per node row, the largest squared motion of the DOF one
+  // condition imposes on its nodes in this step (condition_motion, scratch), and those summed
+  // over the conditions (imposed_motion; apply_velocities adds it to the row's motion).
+  std::vector<std::vector<std::uint32_t>> imposed_node_row, imposed_rows;
   std::vector<double> imposed_motion, condition_motion;
   // Imposed-velocity nodes: velocity before the node pass.
   std::vector<std::vector<Vec3>> imposed_v_old;

@@ -704,10 +704,15 @@ void Simulation::step(bool report) {
     apply_platens(c, t, energies);
   else if (!c.cond.loads.empty())
     apply_loads(c, t);
+  // (half_step_velocity of each imposed node, from its slot)
   for (std::size_t v = 0; v < c.cond.velocities.size(); ++v) {
-    const auto& nodes = c.cond.velocities[v].set.nodes;
-    for (std::size_t q = 0; q < nodes.size(); ++q)
-      c.bc.imposed_v_old[v][q] = half_step_velocity(nodes[q]);
+    const std::vector<std::size_t>& slots = c.bc.velocity_slots[v];
+    std::vector<Vec3>& v_old = c.bc.imposed_v_old[v];
+    for (std::size_t q = 0; q < slots.size(); ++q) {
+      const std::size_t p = slots[q];
+      v_old[q] = {(c.ux[p] - c.wx[p]) / c.dt, (c.uy[p] - c.wy[p]) / c.dt,
+                  (c.uz[p] - c.wz[p]) / c.dt};
+    }
   }
   const bool damped = c.opt.damping > 0.0,
              loads = !c.cond.loads.empty() || !c.cond.platens.empty();
