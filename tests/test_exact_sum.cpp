@@ -98,5 +98,68 @@ TEST(ExactSum, CarriedByDoublesAndNonFinite) {
   EXPECT_TRUE(std::isinf(sum_of({1e30}).value())); // beyond 2^95: not representable
 }
 
+// ExactAccumulator: the ExactSum of the same terms to the bit, whatever their signs and
+// magnitudes (the digits only defer the carries), through its carries of 2^30 terms, and with
+// terms that are not finite, out of range or below 2^-160.
+ExactSum accumulated(const std::vector<double>& terms) {
+  ExactAccumulator a;
+  for (double x : terms)
+    a.add(x);
+  return a.sum();
+}
+
+TEST(ExactAccumulator, TheSameBitsAsExactSum) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> mant(-1.0, 1.0), decade(-45.0, 25.0);
+  std::vector<double> terms(50000);
+  for (double& x : terms)
+    x = mant(rng) * std::pow(10.0, decade(rng));
+  // Subnormals, terms that lose bits below 2^-160 or all of them, and the largest in range
+  // (mantissa all ones just below 2^95).
+  for (const double x : {std::numeric_limits<double>::denorm_min(), -1e-310, 1e-47, -3e-49, 1e-50,
+                         std::ldexp(1.0, -160), -std::ldexp(1.0, -161),
+                         std::ldexp(std::ldexp(1.0, 53) - 1.0, 94 - 52), 0.0, -0.0})
+    terms.push_back(x);
+  const ExactSum direct = sum_of(terms);
+  EXPECT_EQ(accumulated(terms), direct);
+  EXPECT_EQ(accumulated(terms).value(), direct.value());
+  // Each term and its negative: exactly zero, as ExactSum's own.
+  std::vector<double> both = terms;
+  for (double x : terms)
+    both.push_back(-x);
+  EXPECT_EQ(accumulated(both), ExactSum{});
+  // Terms that are not finite or beyond the range: the same special value.
+  for (const double bad :
+       {HUGE_VAL, -HUGE_VAL, std::numeric_limits<double>::quiet_NaN(), 1e30, -1e30}) {
+    std::vector<double> t = {1.0, bad, -2.5};
+    const ExactSum a = accumulated(t), b = sum_of(t);
+    EXPECT_EQ(std::isnan(a.value()), std::isnan(b.value())) << bad;
+    if (!std::isnan(b.value())) {
+      EXPECT_EQ(a.value(), b.value()) << bad;
+    }
+  }
+}
+
+TEST(ExactAccumulator, CarriesPastTwoToTheThirtyTerms) {
+  // 2^30 + 3 terms of x = (2^53 - 1) 2^-41: in units of 2^-160 its 53 bits start at bit 119,
+  // bit 23 of a digit, so its first two digit parts are 2^32 - 2^23 and 2^32 - 1 and a digit
+  // reaches 2^62 by the 2^30th term: the digits carry once on the way. The sum n x exactly,
+  // from ExactSum by doubling and adding.
+  const double x = std::ldexp(std::ldexp(1.0, 53) - 1.0, -41);
+  const std::uint64_t n = (std::uint64_t{1} << 30) + 3;
+  ExactAccumulator a;
+  for (std::uint64_t i = 0; i < n; ++i)
+    a.add(x);
+  ExactSum expected, power;
+  power.add(x);
+  for (std::uint64_t m = n; m != 0; m >>= 1) {
+    if (m & 1)
+      expected.add(power);
+    power.twice();
+  }
+  EXPECT_EQ(a.sum(), expected);
+  EXPECT_EQ(a.sum().value(), static_cast<double>(n) * x); // (n x has 84 bits: rounded once)
+}
+
 } // namespace
 } // namespace ldem

@@ -28,6 +28,33 @@ void negate(Limbs& a) { // two's complement
 
 } // namespace
 
+void ExactAccumulator::carry() {
+  std::int64_t c = 0;
+  for (int i = 0; i < kDigits; ++i) {
+    const std::int64_t v = digits_[static_cast<std::size_t>(i)] + c;
+    if (i + 1 == kDigits) {
+      digits_[static_cast<std::size_t>(i)] = v;
+    } else {
+      digits_[static_cast<std::size_t>(i)] = v & 0xffffffff;
+      c = v >> 32; // (arithmetic: floor(v / 2^32))
+    }
+  }
+  adds_ = 0;
+}
+
+ExactSum ExactAccumulator::sum() const {
+  // The digits carried: digits 0 to 7 hold the sum modulo 2^256 (ExactSum's two's complement),
+  // digit 8 the rest (its sign, in range).
+  ExactAccumulator a = *this;
+  a.carry();
+  ExactSum s;
+  for (std::size_t j = 0; j < ExactSum::kLimbs; ++j)
+    s.limbs_[j] = static_cast<std::uint64_t>(a.digits_[2 * j]) |
+                  (static_cast<std::uint64_t>(a.digits_[2 * j + 1]) << 32);
+  s.special_ = special_;
+  return s;
+}
+
 void ExactSum::add(const ExactSum& other) {
   add_limbs(limbs_, other.limbs_);
   special_ += other.special_;

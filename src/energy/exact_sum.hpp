@@ -35,51 +35,113 @@ public:
   void read(const double* in);
 
 private:
+  friend class ExactAccumulator;
   std::array<std::uint64_t, kLimbs> limbs_{};
   double special_ = 0.0; // the sum of the terms that are not finite
 };
 
-// (Inline: the step adds a term per imposed node and per row, each a few nanoseconds.)
-inline void ExactSum::add(double x) {
+namespace exact_sum_detail {
+// A double as an integer in units of 2^-160: |x| = mag 2^pos, mag < 2^53, 0 <= pos <= 202 (the
+// top limb keeps its sign bit clear), or what else it is.
+enum class Kind { Value, Dropped, NotFinite, OutOfRange };
+struct Term {
+  Kind kind;
+  bool negative;
+  std::uint64_t mag;
+  int pos;
+};
+inline Term decode(double x) {
   // The IEEE fields: |x| = mant 2^(exponent - 1075) (normal) or mant 2^-1074 (subnormal).
   const auto bits = std::bit_cast<std::uint64_t>(x);
   const auto exponent = static_cast<int>((bits >> 52) & 0x7ff);
   std::uint64_t mant = bits & ((std::uint64_t{1} << 52) - 1);
-  if (exponent == 0x7ff) [[unlikely]] { // infinity or NaN
-    special_ += x;
-    return;
-  }
+  const bool negative = (bits >> 63) != 0;
+  if (exponent == 0x7ff) [[unlikely]] // infinity or NaN
+    return {Kind::NotFinite, negative, 0, 0};
   if (exponent != 0)
     mant |= std::uint64_t{1} << 52;
   if (mant == 0)
-    return;
-  // In units of 2^-160, |x| is mant shifted left by `shift` bits: t (a limb more, for the
-  // high part of a shift that crosses into the top limb, which stays 0 in range).
-  const int shift = (exponent == 0 ? -1074 : exponent - 1075) + kFractionBits;
-  std::uint64_t t[kLimbs + 1] = {};
-  if (shift < 0) {
+    return {Kind::Dropped, negative, 0, 0};
+  const int shift = (exponent == 0 ? -1074 : exponent - 1075) + ExactSum::kFractionBits;
+  if (shift < 0) { // bits below 2^-160 dropped, the same way whatever the sign and order
     if (shift <= -64)
-      return; // below 2^-160: dropped
-    t[0] = mant >> -shift;
-  } else {
-    const int limb = shift / 64, bit = shift % 64;
-    // mant has 53 bits: they must stay below the sign bit, 255.
-    if (limb >= kLimbs || (limb + 1 == kLimbs && bit > 64 - 54)) [[unlikely]] {
-      special_ += x > 0.0 ? HUGE_VAL : -HUGE_VAL; // beyond the range: shown as infinite
-      return;
-    }
-    t[limb] = mant << bit;
-    t[limb + 1] = bit != 0 ? mant >> (64 - bit) : 0;
+      return {Kind::Dropped, negative, 0, 0};
+    mant >>= -shift;
+    return {mant == 0 ? Kind::Dropped : Kind::Value, negative, mant, 0};
   }
+  // mant has 53 bits: they must stay below the sign bit, 255.
+  if (shift > 64 * ExactSum::kLimbs - 54) [[unlikely]]
+    return {Kind::OutOfRange, negative, 0, 0};
+  return {Kind::Value, negative, mant, shift};
+}
+} // namespace exact_sum_detail
+
+// (Inline: the step adds a term per imposed node and per row, each a few nanoseconds.)
+inline void ExactSum::add(double x) {
+  using exact_sum_detail::Kind;
+  const exact_sum_detail::Term term = exact_sum_detail::decode(x);
+  if (term.kind != Kind::Value) [[unlikely]] {
+    if (term.kind == Kind::NotFinite)
+      special_ += x;
+    else if (term.kind == Kind::OutOfRange)
+      special_ += x > 0.0 ? HUGE_VAL : -HUGE_VAL; // beyond the range: shown as infinite
+    return;
+  }
+  // |x| in limbs: t (a limb more, for the high part of a shift that crosses into the top
+  // limb, which stays 0 in range).
+  std::uint64_t t[kLimbs + 1] = {};
+  const int limb = term.pos / 64, bit = term.pos % 64;
+  t[limb] = term.mag << bit;
+  t[limb + 1] = bit != 0 ? term.mag >> (64 - bit) : 0;
   // limbs + t, or for a negative x limbs + ~t + 1 (its two's complement): one carry chain.
   __extension__ using Wide = unsigned __int128; // (GCC's and Clang's; an add with its carry)
-  const std::uint64_t negative = bits >> 63, flip = 0 - negative;
+  const std::uint64_t negative = term.negative ? 1 : 0, flip = 0 - negative;
   Wide carry = static_cast<Wide>(limbs_[0]) + (t[0] ^ flip) + negative;
   limbs_[0] = static_cast<std::uint64_t>(carry);
   for (std::size_t i = 1; i < kLimbs; ++i) {
     carry = (carry >> 64) + limbs_[i] + (t[i] ^ flip);
     limbs_[i] = static_cast<std::uint64_t>(carry);
   }
+}
+
+// The same sum as ExactSum, for loops that add many terms in a row: each term's 53 bits go to
+// three of nine 32-bit digits, each digit a signed 64-bit count, with no carry from one digit
+// to the next until the sum is read (sum()). ExactSum's adds wait on each other through their
+// carry chain; these wait only where two terms share a digit. sum() gives the ExactSum of the
+// same terms to the bit (tests/test_exact_sum.cpp).
+class ExactAccumulator {
+public:
+  inline void add(double x);
+  ExactSum sum() const;
+
+private:
+  static constexpr int kDigits = 2 * ExactSum::kLimbs + 1; // 288 bits: a term reaches bit 255
+  void carry(); // each digit back to [0, 2^32), the last one signed
+  std::array<std::int64_t, kDigits> digits_{};
+  std::uint32_t adds_ = 0; // since the last carry: a digit moves by < 2^32 per add
+  double special_ = 0.0;   // as ExactSum's
+};
+
+inline void ExactAccumulator::add(double x) {
+  using exact_sum_detail::Kind;
+  const exact_sum_detail::Term term = exact_sum_detail::decode(x);
+  if (term.kind != Kind::Value) [[unlikely]] {
+    if (term.kind == Kind::NotFinite)
+      special_ += x;
+    else if (term.kind == Kind::OutOfRange)
+      special_ += x > 0.0 ? HUGE_VAL : -HUGE_VAL;
+    return;
+  }
+  __extension__ using Wide = unsigned __int128;
+  const int digit = term.pos / 32;
+  const Wide w = static_cast<Wide>(term.mag) << (term.pos % 32); // at most 84 bits
+  const std::int64_t sign = term.negative ? -1 : 1;
+  digits_[static_cast<std::size_t>(digit)] += sign * static_cast<std::int64_t>(w & 0xffffffffu);
+  digits_[static_cast<std::size_t>(digit) + 1] +=
+      sign * static_cast<std::int64_t>((w >> 32) & 0xffffffffu);
+  digits_[static_cast<std::size_t>(digit) + 2] += sign * static_cast<std::int64_t>(w >> 64);
+  if (++adds_ == (1u << 30)) [[unlikely]] // (2^30 parts below 2^32 each fit a digit's 63 bits)
+    carry();
 }
 
 } // namespace ldem

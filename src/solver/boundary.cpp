@@ -170,7 +170,7 @@ void apply_loads(SimulationCore& core, double t, bool always) {
 // support must apply. Returns nothing: adds to the per-step sums below.
 void apply_velocities(SimulationCore& core, double t, bool report) {
   const double dt = core.dt, half = 0.5 * core.opt.damping * dt;
-  ExactSum work, work_half, damping, kinetic;
+  ExactAccumulator work, work_half, damping, kinetic;
   for (std::size_t c = 0; c < core.cond.velocities.size(); ++c) {
     const ImposedVelocity& iv = core.cond.velocities[c];
     const double s =
@@ -255,10 +255,10 @@ void apply_velocities(SimulationCore& core, double t, bool report) {
   for (std::size_t c = 0; c < core.cond.velocities.size(); ++c)
     for (const std::uint32_t r : core.bc.imposed_rows[c])
       core.bc.imposed_motion[r] = 0.0;
-  core.bc.work = work;
-  core.bc.work_half = work_half;
-  core.bc.damping = damping;
-  core.bc.kinetic = kinetic;
+  core.bc.work = work.sum();
+  core.bc.work_half = work_half.sum();
+  core.bc.damping = damping.sum();
+  core.bc.kinetic = kinetic.sum();
 }
 
 } // namespace ldem

@@ -727,17 +727,19 @@ void Simulation::step(bool report) {
   // The step's work and damping, row by row and DOF by DOF, added exactly (Ledger).
   // (Without damping or loads the rows' terms are zeros, which add nothing.)
   const std::size_t rows = c.layout.node_rows.size();
-  ExactSum damping = c.bc.damping, load_mid = c.bc.work;
-  for (std::size_t r = 0; damped && r < rows; ++r)
-    damping.add(c.row_damping[r]);
-  for (std::size_t r = 0; loads && r < rows; ++r)
-    load_mid.add(c.row_load_mid[r]);
+  // (Each row's term into an ExactAccumulator, then the conditions' sums: the same bits.)
+  const auto rows_sum = [rows](ExactSum into, const std::vector<double>& terms, bool on) {
+    ExactAccumulator a;
+    for (std::size_t r = 0; on && r < rows; ++r)
+      a.add(terms[r]);
+    into.add(a.sum());
+    return into;
+  };
+  const ExactSum damping = rows_sum(c.bc.damping, c.row_damping, damped);
+  const ExactSum load_mid = rows_sum(c.bc.work, c.row_load_mid, loads);
   if (energies) {
-    ExactSum kinetic = c.bc.kinetic, work_half = c.bc.work_half;
-    for (std::size_t r = 0; r < rows; ++r)
-      kinetic.add(c.row_kinetic[r]);
-    for (std::size_t r = 0; loads && r < rows; ++r)
-      work_half.add(c.row_load_half[r]);
+    const ExactSum kinetic = rows_sum(c.bc.kinetic, c.row_kinetic, true),
+                   work_half = rows_sum(c.bc.work_half, c.row_load_half, loads);
     // Damping: the part of this step's dissipation a dt v_n . m v_n that lies before t_n,
     // taken as half of it (the exact split a m v_n . dt v_{n-1/2} / 2 differs by O(dt^2)).
     const BarEnergies bars = law_->report_bar_energies(c);
