@@ -108,10 +108,11 @@ TEST(BalanceRanges, EqualCostsStayAndNoiseBelowTheMarginMovesNothing) {
   EXPECT_EQ(start[1], 30);
   // The upper range's 31 planes each dearer by d: moving one plane down gives the ranges
   // 31 + d and 30 (1 + d), where the upper one alone was 31 (1 + d). With d = 0.4 / 31 (a
-  // clock's noise) the gain, 31 (1 + d) - (31 + d) = 0.39, is under the margin of half a plane's
-  // average cost (0.5 (61 + 0.4) / 61 = 0.50): nothing moves. With d = 1.5 / 31 (a cost) the
-  // gain, 31 (1 + d) - 30 (1 + d) = 1.05, is past it (0.51): the boundary moves up by one plane.
-  for (const double extra : {0.4, 1.5}) {
+  // clock's noise) the gain, 31 (1 + d) - (31 + d) = 0.39, is under the margin of a plane's
+  // average cost ((61 + 0.4) / 61 = 1.007): nothing moves. With d = 2 / 31 (a cost) the gain,
+  // 31 (1 + d) - 30 (1 + d) = 1.065, is past it (63 / 61 = 1.033): the boundary moves up by one
+  // plane (by two, the lower range would cost 32.13, more than the 31.94 of the upper one).
+  for (const double extra : {0.4, 2.0}) {
     std::vector<double> cost(61, 1.0);
     for (std::size_t k = 30; k < 61; ++k)
       cost[k] += extra / 31.0;
@@ -145,11 +146,25 @@ TEST(BalanceRanges, CostlyPlanesPlaceTheBoundariesAtOnce) {
   }
 }
 
+TEST(BalanceRanges, TypicalCostsIgnoreAnInterruptedSample) {
+  // 3 planes, 4 samples each (sample s of plane i at s * 3 + i); in each plane one sample is
+  // 50 times the others (the thread interrupted while it took that plane). The median of 4,
+  // the mean of the middle two, is the plane's own cost.
+  const std::vector<double> times{1.0,  2.0,   150.0, //
+                                  50.0, 2.0,   3.0,   //
+                                  1.0,  100.0, 3.0,   //
+                                  1.0,  2.0,   3.0};
+  EXPECT_EQ(typical_costs(times, 3, 4), (std::vector<double>{1.0, 2.0, 3.0}));
+  // An odd count: the middle sample.
+  EXPECT_EQ(typical_costs({4.0, 1.0, 9.0}, 1, 3), (std::vector<double>{4.0}));
+}
+
 TEST(BalanceRanges, NoRangeGetsFewerThanTheLeastItems) {
   // 12 planes of cost 1 but plane 0 at 10 (total 21), 3 ranges from the even split (13, 4 and 4).
   // The first boundary's share, 7, lies inside plane 0, whose nearer edge, 1, would leave range 0
   // one plane: it keeps 2 (the walk's slabs need a plane below their top one), costing 11. The
-  // second's share, 14, is edge 5 (10 + 4). Longest 11 against 13: moved.
+  // second's share, 14, is edge 5 (10 + 4). Longest 11 against 13, a gain of 2 past the margin
+  // of 21 / 12 = 1.75: moved.
   std::vector<double> cost(12, 1.0);
   cost[0] = 10.0;
   std::vector<std::int64_t> start = even_split(3, 12);

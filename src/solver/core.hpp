@@ -164,7 +164,8 @@ struct SimulationCore {
   std::int64_t block_lines = 1; // lines per block of the walk (advance_rows)
   // The walk's slabs of k-planes (advance_rows): thread t takes the planes [slab_start[t],
   // slab_start[t + 1]), placed by balance_slabs for equal times; each plane's time in the walk
-  // over the timed steps since the last placing (one step in 4), and the steps since then.
+  // on each timed step since the last placing (one step in 4: 4 samples of every plane, one
+  // after the other), and the steps since then.
   std::vector<std::int64_t> slab_start;
   std::vector<double> plane_busy;
   int busy_steps = 0;

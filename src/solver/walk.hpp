@@ -30,26 +30,28 @@ void move_bar_line(const SimulationCore& core, std::size_t l, double* plane, dou
 
 // The threads' slabs of k-planes (SimulationCore::slab_start) for `nt` threads and `nplanes`
 // planes: even at first (and whenever the threads or planes change), then placed every 16 steps
-// by the planes' times in the walk (balance_ranges), measured on one step in 4: a crack or a
-// damaged layer makes some planes cost several times others, and with an even split the other
-// threads would wait for the slowest at each step's end. The split goes at once where the
-// times say, so that it keeps up with a crack that spreads over many planes. Which thread
-// takes a plane changes no result (advance_rows).
+// by the planes' times in the walk (balance_ranges), measured on one step in 4, each plane's
+// the median of its 4 (typical_costs): a crack or a damaged layer makes some planes cost
+// several times others, and with an even split the other threads would wait for the slowest
+// at each step's end. The split goes at once where the times say, so that it keeps up with a
+// crack that spreads over many planes. Which thread takes a plane changes no result
+// (advance_rows).
+inline constexpr int kBalanceSteps = 16, kTimedEvery = 4;
 inline void balance_slabs(SimulationCore& core, std::int64_t nt, std::int64_t nplanes) {
   std::vector<std::int64_t>& s = core.slab_start;
-  const auto n = static_cast<std::size_t>(nt);
-  if (s.size() != n + 1 || s.back() != nplanes ||
-      core.plane_busy.size() != static_cast<std::size_t>(nplanes)) {
+  const auto n = static_cast<std::size_t>(nt), planes = static_cast<std::size_t>(nplanes);
+  constexpr std::size_t kSamples = kBalanceSteps / kTimedEvery;
+  if (s.size() != n + 1 || s.back() != nplanes || core.plane_busy.size() != kSamples * planes) {
     s.resize(n + 1);
     for (std::int64_t u = 0; u <= nt; ++u)
       s[static_cast<std::size_t>(u)] = u * nplanes / nt;
-    core.plane_busy.assign(static_cast<std::size_t>(nplanes), 0.0);
+    core.plane_busy.assign(kSamples * planes, 0.0);
     core.busy_steps = 0;
     return;
   }
-  if (++core.busy_steps < 16)
+  if (++core.busy_steps < kBalanceSteps)
     return;
-  balance_ranges(s, core.plane_busy);
+  balance_ranges(s, typical_costs(core.plane_busy, planes, kSamples));
   std::fill(core.plane_busy.begin(), core.plane_busy.end(), 0.0);
   core.busy_steps = 0;
 }
@@ -89,10 +91,15 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
                             : slabs  ? first(nplanes, t + 1)
                                      : nplanes;
     // A step whose planes' times are measured (balance_slabs): each plane's share of the walk
-    // into plane_busy, its top plane's bars before the barrier included. (One step in 4: on
-    // some machines the clock is a system call.)
-    const bool timed = balanced && nt > 1 && core.busy_steps % 4 == 0 &&
-                       core.plane_busy.size() == static_cast<std::size_t>(nplanes);
+    // into its sample of plane_busy, its top plane's bars before the barrier included. (One
+    // step in 4: on some machines the clock is a system call.)
+    const bool timed =
+        balanced && nt > 1 && core.busy_steps % kTimedEvery == 0 &&
+        core.plane_busy.size() == static_cast<std::size_t>(kBalanceSteps / kTimedEvery * nplanes);
+    double* const busy = timed
+                             ? core.plane_busy.data() +
+                                   static_cast<std::size_t>(core.busy_steps / kTimedEvery * nplanes)
+                             : nullptr;
     double clock = timed ? omp_get_wtime() : 0.0;
     const std::int64_t j0 = slabs ? 0 : first(nlines, t);
     const std::int64_t j1 = slabs ? nlines : first(nlines, t + 1);
@@ -129,7 +136,7 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
       --below;
     if (timed && box) {
       const double now = omp_get_wtime();
-      core.plane_busy[static_cast<std::size_t>(k1 - 1)] += now - clock;
+      busy[k1 - 1] += now - clock;
     }
 #pragma omp barrier
     if (timed)
@@ -161,7 +168,7 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
           node_rows_range<Damped, Loads, Report>(core, line(j, k), s_plane, s_below);
         if (timed) {
           const double now = omp_get_wtime();
-          core.plane_busy[static_cast<std::size_t>(k)] += now - clock;
+          busy[k] += now - clock;
           clock = now;
         }
       }

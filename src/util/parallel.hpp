@@ -11,6 +11,21 @@ namespace ldem {
 // on a busy machine); loops over fewer items run on the calling thread.
 inline constexpr std::int64_t kParallelMinItems = 20000;
 
+// Each item's typical cost from `samples` measurements of it (sample s of item i at
+// times[s * items + i]): the median, so that a sample that an interruption of the thread
+// lengthened (a few in a period, on a busy machine) does not count.
+inline std::vector<double> typical_costs(const std::vector<double>& times, std::size_t items,
+                                         std::size_t samples) {
+  std::vector<double> cost(items), one(samples);
+  for (std::size_t i = 0; i < items; ++i) {
+    for (std::size_t s = 0; s < samples; ++s)
+      one[s] = times[s * items + i];
+    std::sort(one.begin(), one.end());
+    cost[i] = samples % 2 == 1 ? one[samples / 2] : 0.5 * (one[samples / 2 - 1] + one[samples / 2]);
+  }
+  return cost;
+}
+
 // Contiguous ranges of items, one per thread (range u is [start[u], start[u + 1])), placed so
 // that their costs are as even as whole items allow: cost[i] is what item i took over the
 // same steps (its plane's time in the walk, whichever thread took it). Each boundary goes to
@@ -18,8 +33,9 @@ inline constexpr std::int64_t kParallelMinItems = 20000;
 // the largest item's cost of the best split's longest range; no range gets fewer than
 // `min_items` items (the caller has at least that many per range). The new ranges are taken
 // only if their longest is shorter than the present ranges' longest, on the same costs, by
-// more than half an item's average cost: ranges of equal cost stay where they are, and noise
-// does not move them back and forth. Returns whether they moved.
+// more than an item's average cost: ranges of equal cost stay where they are, and what noise
+// is left in the costs (typical_costs) does not move them back and forth. Returns whether
+// they moved.
 inline bool balance_ranges(std::vector<std::int64_t>& start, const std::vector<double>& cost,
                            std::int64_t min_items = 2) {
   const auto n = static_cast<std::int64_t>(cost.size());
@@ -52,7 +68,7 @@ inline bool balance_ranges(std::vector<std::int64_t>& start, const std::vector<d
                        hi = n - min_items * static_cast<std::int64_t>(ranges - u);
     placed[u] = std::clamp(k, lo, std::max(lo, hi));
   }
-  if (!(longest(placed) < longest(start) - 0.5 * total / static_cast<double>(n)))
+  if (!(longest(placed) < longest(start) - total / static_cast<double>(n)))
     return false;
   start = placed;
   return true;
