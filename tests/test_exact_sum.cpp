@@ -12,6 +12,16 @@
 namespace ldem {
 namespace {
 
+// n terms of both signs, their magnitudes spread evenly over the decades [lo, hi).
+std::vector<double> random_terms(std::size_t n, double lo, double hi, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> mant(-1.0, 1.0), decade(lo, hi);
+  std::vector<double> terms(n);
+  for (double& x : terms)
+    x = mant(rng) * std::pow(10.0, decade(rng));
+  return terms;
+}
+
 ExactSum sum_of(const std::vector<double>& terms) {
   ExactSum s;
   for (double x : terms)
@@ -24,10 +34,7 @@ ExactSum sum_of(const std::vector<double>& terms) {
 // the sum is the same number to the bit.
 TEST(ExactSum, SameBitsInAnyOrderAndSplit) {
   std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> mant(-1.0, 1.0), decade(-30.0, 10.0);
-  std::vector<double> terms(20000);
-  for (double& x : terms)
-    x = mant(rng) * std::pow(10.0, decade(rng));
+  const std::vector<double> terms = random_terms(20000, -30.0, 10.0, 7);
   const ExactSum forward = sum_of(terms);
   std::vector<double> other = terms;
   std::reverse(other.begin(), other.end());
@@ -109,11 +116,7 @@ ExactSum accumulated(const std::vector<double>& terms) {
 }
 
 TEST(ExactAccumulator, TheSameBitsAsExactSum) {
-  std::mt19937_64 rng(11);
-  std::uniform_real_distribution<double> mant(-1.0, 1.0), decade(-45.0, 25.0);
-  std::vector<double> terms(50000);
-  for (double& x : terms)
-    x = mant(rng) * std::pow(10.0, decade(rng));
+  std::vector<double> terms = random_terms(50000, -45.0, 25.0, 11);
   // Subnormals, terms that lose bits below 2^-160 or all of them, and the largest in range
   // (mantissa all ones just below 2^95).
   for (const double x : {std::numeric_limits<double>::denorm_min(), -1e-310, 1e-47, -3e-49, 1e-50,

@@ -42,51 +42,47 @@ private:
 
 namespace exact_sum_detail {
 // A double as an integer in units of 2^-160: |x| = mag 2^pos, mag < 2^53, 0 <= pos <= 202 (the
-// top limb keeps its sign bit clear), or what else it is.
-enum class Kind { Value, Dropped, NotFinite, OutOfRange };
+// top limb keeps its sign bit clear).
 struct Term {
-  Kind kind;
   bool negative;
   std::uint64_t mag;
   int pos;
 };
-inline Term decode(double x) {
+// x's term, or false if there is none to add: a term that is not finite goes into `special`
+// (the sum of such terms), one beyond the range too, as an infinity of its sign; one whose bits
+// all lie below 2^-160 is dropped (and a term's bits below it, the same way whatever the sign
+// and order).
+inline bool term_of(double x, double& special, Term& term) {
   // The IEEE fields: |x| = mant 2^(exponent - 1075) (normal) or mant 2^-1074 (subnormal).
   const auto bits = std::bit_cast<std::uint64_t>(x);
   const auto exponent = static_cast<int>((bits >> 52) & 0x7ff);
   std::uint64_t mant = bits & ((std::uint64_t{1} << 52) - 1);
-  const bool negative = (bits >> 63) != 0;
-  if (exponent == 0x7ff) [[unlikely]] // infinity or NaN
-    return {Kind::NotFinite, negative, 0, 0};
+  if (exponent == 0x7ff) [[unlikely]] { // infinity or NaN
+    special += x;
+    return false;
+  }
   if (exponent != 0)
     mant |= std::uint64_t{1} << 52;
-  if (mant == 0)
-    return {Kind::Dropped, negative, 0, 0};
   const int shift = (exponent == 0 ? -1074 : exponent - 1075) + ExactSum::kFractionBits;
-  if (shift < 0) { // bits below 2^-160 dropped, the same way whatever the sign and order
-    if (shift <= -64)
-      return {Kind::Dropped, negative, 0, 0};
-    mant >>= -shift;
-    return {mant == 0 ? Kind::Dropped : Kind::Value, negative, mant, 0};
-  }
+  if (shift < 0)
+    mant = shift <= -64 ? 0 : mant >> -shift;
+  if (mant == 0)
+    return false;
   // mant has 53 bits: they must stay below the sign bit, 255.
-  if (shift > 64 * ExactSum::kLimbs - 54) [[unlikely]]
-    return {Kind::OutOfRange, negative, 0, 0};
-  return {Kind::Value, negative, mant, shift};
+  if (shift > 64 * ExactSum::kLimbs - 54) [[unlikely]] {
+    special += x > 0.0 ? HUGE_VAL : -HUGE_VAL; // beyond the range: shown as infinite
+    return false;
+  }
+  term = {(bits >> 63) != 0, mant, shift < 0 ? 0 : shift};
+  return true;
 }
 } // namespace exact_sum_detail
 
 // (Inline: the step adds a term per imposed node and per row, each a few nanoseconds.)
 inline void ExactSum::add(double x) {
-  using exact_sum_detail::Kind;
-  const exact_sum_detail::Term term = exact_sum_detail::decode(x);
-  if (term.kind != Kind::Value) [[unlikely]] {
-    if (term.kind == Kind::NotFinite)
-      special_ += x;
-    else if (term.kind == Kind::OutOfRange)
-      special_ += x > 0.0 ? HUGE_VAL : -HUGE_VAL; // beyond the range: shown as infinite
+  exact_sum_detail::Term term;
+  if (!exact_sum_detail::term_of(x, special_, term)) [[unlikely]]
     return;
-  }
   // |x| in limbs: t (a limb more, for the high part of a shift that crosses into the top
   // limb, which stays 0 in range).
   std::uint64_t t[kLimbs + 1] = {};
@@ -123,15 +119,9 @@ private:
 };
 
 inline void ExactAccumulator::add(double x) {
-  using exact_sum_detail::Kind;
-  const exact_sum_detail::Term term = exact_sum_detail::decode(x);
-  if (term.kind != Kind::Value) [[unlikely]] {
-    if (term.kind == Kind::NotFinite)
-      special_ += x;
-    else if (term.kind == Kind::OutOfRange)
-      special_ += x > 0.0 ? HUGE_VAL : -HUGE_VAL;
+  exact_sum_detail::Term term;
+  if (!exact_sum_detail::term_of(x, special_, term)) [[unlikely]]
     return;
-  }
   __extension__ using Wide = unsigned __int128;
   const int digit = term.pos / 32;
   const Wide w = static_cast<Wide>(term.mag) << (term.pos % 32); // at most 84 bits
