@@ -167,7 +167,7 @@ struct SimulationCore {
   // on each timed step since the last placing (one step in 4: 4 samples of every plane, one
   // after the other), and the steps since then.
   std::vector<std::int64_t> slab_start;
-  std::vector<double> plane_busy;
+  std::vector<double> plane_busy, plane_cost; // (plane_cost: their medians, typical_costs)
   int busy_steps = 0;
   std::vector<std::vector<Event>> thread_events;
 

@@ -51,7 +51,8 @@ inline void balance_slabs(SimulationCore& core, std::int64_t nt, std::int64_t np
   }
   if (++core.busy_steps < kBalanceSteps)
     return;
-  balance_ranges(s, typical_costs(core.plane_busy, planes, kSamples));
+  typical_costs(core.plane_busy, kSamples, core.plane_cost);
+  balance_ranges(s, core.plane_cost);
   std::fill(core.plane_busy.begin(), core.plane_busy.end(), 0.0);
   core.busy_steps = 0;
 }

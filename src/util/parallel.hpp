@@ -2,6 +2,8 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -11,19 +13,20 @@ namespace ldem {
 // on a busy machine); loops over fewer items run on the calling thread.
 inline constexpr std::int64_t kParallelMinItems = 20000;
 
-// Each item's typical cost from `samples` measurements of it (sample s of item i at
-// times[s * items + i]): the median, so that a sample that an interruption of the thread
-// lengthened (a few in a period, on a busy machine) does not count.
-inline std::vector<double> typical_costs(const std::vector<double>& times, std::size_t items,
-                                         std::size_t samples) {
-  std::vector<double> cost(items), one(samples);
+// Each item's typical cost from `samples` (at most 16) measurements of it (sample s of item i
+// at times[s * items + i]) into cost: the median, so that a sample that an interruption of the
+// thread lengthened (a few in a period, on a busy machine) does not count.
+inline void typical_costs(const std::vector<double>& times, std::size_t samples,
+                          std::vector<double>& cost) {
+  const std::size_t items = times.size() / samples;
+  cost.resize(items);
+  std::array<double, 16> one{};
   for (std::size_t i = 0; i < items; ++i) {
     for (std::size_t s = 0; s < samples; ++s)
       one[s] = times[s * items + i];
-    std::sort(one.begin(), one.end());
+    std::sort(one.begin(), one.begin() + static_cast<std::ptrdiff_t>(samples));
     cost[i] = samples % 2 == 1 ? one[samples / 2] : 0.5 * (one[samples / 2 - 1] + one[samples / 2]);
   }
-  return cost;
 }
 
 // Contiguous ranges of items, one per thread (range u is [start[u], start[u + 1])), placed so
@@ -40,7 +43,10 @@ inline bool balance_ranges(std::vector<std::int64_t>& start, const std::vector<d
                            std::int64_t min_items = 2) {
   const auto n = static_cast<std::int64_t>(cost.size());
   const std::size_t ranges = start.size() - 1;
-  std::vector<double> prefix(cost.size() + 1, 0.0);
+  // (Kept from call to call: the step loop allocates nothing once running.)
+  thread_local std::vector<double> prefix;
+  thread_local std::vector<std::int64_t> placed;
+  prefix.assign(cost.size() + 1, 0.0);
   for (std::size_t i = 0; i < cost.size(); ++i)
     prefix[i + 1] = prefix[i] + cost[i];
   const double total = prefix.back();
@@ -53,8 +59,7 @@ inline bool balance_ranges(std::vector<std::int64_t>& start, const std::vector<d
                                 prefix[static_cast<std::size_t>(s[u])]);
     return most;
   };
-  std::vector<std::int64_t> placed(start.size());
-  placed[0] = 0;
+  placed.assign(start.size(), 0);
   placed[ranges] = n;
   for (std::size_t u = 1; u < ranges; ++u) {
     const double target = total * static_cast<double>(u) / static_cast<double>(ranges);
