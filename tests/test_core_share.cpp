@@ -155,10 +155,10 @@ TEST(BalanceRanges, TypicalCostsIgnoreAnInterruptedSample) {
                                   1.0,  100.0, 3.0,   //
                                   1.0,  2.0,   3.0};
   std::vector<double> cost;
-  typical_costs(times, 4, cost);
+  typical_costs<4>(times, cost);
   EXPECT_EQ(cost, (std::vector<double>{1.0, 2.0, 3.0}));
   // An odd count: the middle sample.
-  typical_costs({4.0, 1.0, 9.0}, 3, cost);
+  typical_costs<3>({4.0, 1.0, 9.0}, cost);
   EXPECT_EQ(cost, (std::vector<double>{4.0}));
 }
 

@@ -186,6 +186,11 @@ struct SimulationCore {
   EnergyReport report{};
 
   std::size_t slot(index_t node) const { return layout.slot(lat, node); }
+  // v_{n-1/2} = (u_n - u_{n-1}) / dt of the node in slot q: the state is two displacement
+  // fields.
+  Vec3 half_step_velocity(std::size_t q) const {
+    return {(ux[q] - wx[q]) / dt, (uy[q] - wy[q]) / dt, (uz[q] - wz[q]) / dt};
+  }
   template <class F> void for_each_run(index_t first, index_t count, F&& visit) const {
     layout.for_each_run(lat, first, count, visit);
   }

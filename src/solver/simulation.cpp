@@ -444,11 +444,8 @@ Vec3 Simulation::displacement(index_t node) const {
   return {c.ux[q], c.uy[q], c.uz[q]};
 }
 
-// v_{n-1/2} is (u_n - u_{n-1}) / dt: the state is two displacement fields.
 Vec3 Simulation::half_step_velocity(index_t node) const {
-  const SimulationCore& c = *core_;
-  const std::size_t q = c.slot(node);
-  return {(c.ux[q] - c.wx[q]) / c.dt, (c.uy[q] - c.wy[q]) / c.dt, (c.uz[q] - c.wz[q]) / c.dt};
+  return core_->half_step_velocity(core_->slot(node));
 }
 
 void Simulation::node_states(index_t first, index_t count, Vec3* u, Vec3* v) const {
@@ -457,7 +454,7 @@ void Simulation::node_states(index_t first, index_t count, Vec3* u, Vec3* v) con
     for (index_t i = 0; i < run; ++i) {
       const std::size_t q = q0 + i, o = n0 + i - first;
       u[o] = {c.ux[q], c.uy[q], c.uz[q]};
-      v[o] = {(c.ux[q] - c.wx[q]) / c.dt, (c.uy[q] - c.wy[q]) / c.dt, (c.uz[q] - c.wz[q]) / c.dt};
+      v[o] = c.half_step_velocity(q);
     }
   });
 }
@@ -704,15 +701,12 @@ void Simulation::step(bool report) {
     apply_platens(c, t, energies);
   else if (!c.cond.loads.empty())
     apply_loads(c, t);
-  // (half_step_velocity of each imposed node, from its slot)
+  // (The imposed nodes' v_{n-1/2}, for apply_velocities' work.)
   for (std::size_t v = 0; v < c.cond.velocities.size(); ++v) {
     const std::vector<std::size_t>& slots = c.bc.velocity_slots[v];
     std::vector<Vec3>& v_old = c.bc.imposed_v_old[v];
-    for (std::size_t q = 0; q < slots.size(); ++q) {
-      const std::size_t p = slots[q];
-      v_old[q] = {(c.ux[p] - c.wx[p]) / c.dt, (c.uy[p] - c.wy[p]) / c.dt,
-                  (c.uz[p] - c.wz[p]) / c.dt};
-    }
+    for (std::size_t q = 0; q < slots.size(); ++q)
+      v_old[q] = c.half_step_velocity(slots[q]);
   }
   const bool damped = c.opt.damping > 0.0,
              loads = !c.cond.loads.empty() || !c.cond.platens.empty();

@@ -51,7 +51,7 @@ inline void balance_slabs(SimulationCore& core, std::int64_t nt, std::int64_t np
   }
   if (++core.busy_steps < kBalanceSteps)
     return;
-  typical_costs(core.plane_busy, kSamples, core.plane_cost);
+  typical_costs<kSamples>(core.plane_busy, core.plane_cost);
   balance_ranges(s, core.plane_cost);
   std::fill(core.plane_busy.begin(), core.plane_busy.end(), 0.0);
   core.busy_steps = 0;

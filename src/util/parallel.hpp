@@ -13,19 +13,20 @@ namespace ldem {
 // on a busy machine); loops over fewer items run on the calling thread.
 inline constexpr std::int64_t kParallelMinItems = 20000;
 
-// Each item's typical cost from `samples` (at most 16) measurements of it (sample s of item i
-// at times[s * items + i]) into cost: the median, so that a sample that an interruption of the
+// Each item's typical cost from Samples measurements of it (sample s of item i at
+// times[s * items + i]) into cost: the median, so that a sample that an interruption of the
 // thread lengthened (a few in a period, on a busy machine) does not count.
-inline void typical_costs(const std::vector<double>& times, std::size_t samples,
-                          std::vector<double>& cost) {
-  const std::size_t items = times.size() / samples;
+template <std::size_t Samples>
+inline void typical_costs(const std::vector<double>& times, std::vector<double>& cost) {
+  static_assert(Samples > 0 && Samples <= 64, "a few samples per item, sorted on the stack");
+  const std::size_t items = times.size() / Samples;
   cost.resize(items);
-  std::array<double, 16> one{};
+  std::array<double, Samples> one{};
   for (std::size_t i = 0; i < items; ++i) {
-    for (std::size_t s = 0; s < samples; ++s)
+    for (std::size_t s = 0; s < Samples; ++s)
       one[s] = times[s * items + i];
-    std::sort(one.begin(), one.begin() + static_cast<std::ptrdiff_t>(samples));
-    cost[i] = samples % 2 == 1 ? one[samples / 2] : 0.5 * (one[samples / 2 - 1] + one[samples / 2]);
+    std::sort(one.begin(), one.end());
+    cost[i] = Samples % 2 == 1 ? one[Samples / 2] : 0.5 * (one[Samples / 2 - 1] + one[Samples / 2]);
   }
 }
 
