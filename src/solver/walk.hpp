@@ -37,21 +37,22 @@ void move_bar_line(const SimulationCore& core, std::size_t l, double* plane, dou
 // crack that spreads over many planes. Which thread takes a plane changes no result
 // (advance_rows).
 inline constexpr int kBalanceSteps = 16, kTimedEvery = 4;
+inline constexpr std::size_t kBalanceSamples = kBalanceSteps / kTimedEvery; // of each plane
 inline void balance_slabs(SimulationCore& core, std::int64_t nt, std::int64_t nplanes) {
   std::vector<std::int64_t>& s = core.slab_start;
   const auto n = static_cast<std::size_t>(nt), planes = static_cast<std::size_t>(nplanes);
-  constexpr std::size_t kSamples = kBalanceSteps / kTimedEvery;
-  if (s.size() != n + 1 || s.back() != nplanes || core.plane_busy.size() != kSamples * planes) {
+  if (s.size() != n + 1 || s.back() != nplanes ||
+      core.plane_busy.size() != kBalanceSamples * planes) {
     s.resize(n + 1);
     for (std::int64_t u = 0; u <= nt; ++u)
       s[static_cast<std::size_t>(u)] = u * nplanes / nt;
-    core.plane_busy.assign(kSamples * planes, 0.0);
+    core.plane_busy.assign(kBalanceSamples * planes, 0.0);
     core.busy_steps = 0;
     return;
   }
   if (++core.busy_steps < kBalanceSteps)
     return;
-  typical_costs<kSamples>(core.plane_busy, core.plane_cost);
+  typical_costs<kBalanceSamples>(core.plane_busy, core.plane_cost);
   balance_ranges(s, core.plane_cost);
   std::fill(core.plane_busy.begin(), core.plane_busy.end(), 0.0);
   core.busy_steps = 0;
@@ -96,7 +97,7 @@ template <class Law, bool Damped, bool Loads, bool Report> void advance_rows(Sim
     // step in 4: on some machines the clock is a system call.)
     const bool timed =
         balanced && nt > 1 && core.busy_steps % kTimedEvery == 0 &&
-        core.plane_busy.size() == static_cast<std::size_t>(kBalanceSteps / kTimedEvery * nplanes);
+        core.plane_busy.size() == kBalanceSamples * static_cast<std::size_t>(nplanes);
     double* const busy = timed
                              ? core.plane_busy.data() +
                                    static_cast<std::size_t>(core.busy_steps / kTimedEvery * nplanes)
